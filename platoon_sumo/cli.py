@@ -1,0 +1,140 @@
+"""`platoon-sumo`: run and validate scenarios.
+
+Bad input ends with one line on stderr naming the file and key, and exit code 2;
+a simulation failure ends with one line and exit code 1; never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+import platoon_sumo
+from platoon_sumo.errors import PlatoonSumoError, ScenarioError
+
+if TYPE_CHECKING:
+    from platoon_sumo.cosim import CoSimulation, StepRecord
+
+DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
+
+
+def default_scenario() -> Path:
+    """The default scenario: in the working directory, else in the source checkout."""
+    for root in (Path.cwd(), Path(platoon_sumo.__file__).resolve().parent.parent):
+        if (root / DEFAULT_SCENARIO).is_file():
+            return root / DEFAULT_SCENARIO
+    raise ScenarioError(
+        str(DEFAULT_SCENARIO), "", "default scenario not found",
+        "run from the platoon-sumo checkout, or name a scenario file",
+    )  # fmt: skip
+
+
+class Progress:
+    """One status line: simulated time, real-time factor, vehicles in the network."""
+
+    def __init__(self, stream: TextIO, interval_s: float = 0.5):
+        self.stream = stream
+        self.interval_s = interval_s
+        self.tty = stream.isatty()
+        self._start = 0.0
+        self._last = 0.0
+        self._last_decile = -1
+
+    def on_start(self, sim: CoSimulation) -> None:
+        self._start = self._last = time.perf_counter()
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+        now = time.perf_counter()
+        begin = sim.plan.scenario.simulation.begin_s
+        fraction = (record.time_s - begin) / max(sim.end_s - begin, 1e-9)
+        decile = int(fraction * 10)
+        if self.tty and now - self._last < self.interval_s:
+            return
+        if not self.tty and decile == self._last_decile:
+            return
+        self._last, self._last_decile = now, decile
+        rtf = (record.time_s - begin) / max(now - self._start, 1e-9)
+        line = (
+            f"t = {record.time_s:8.1f} / {sim.end_s:.0f} s ({fraction:4.0%})  "
+            f"{rtf:7.1f}x real time  {len(record.world):5d} vehicles  "
+            f"{len(record.vehicles):3d} platoon  {len(sim.counters.collisions)} collisions"
+        )
+        self.stream.write(("\r" + line) if self.tty else line + "\n")
+        self.stream.flush()
+
+    def on_end(self, sim: CoSimulation) -> None:
+        if self.tty:
+            self.stream.write("\n")
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from platoon_sumo.runner import load_plan, run
+
+    path = Path(args.scenario) if args.scenario else default_scenario()
+    plan = load_plan(path, end_s=args.end, seed=args.seed)
+    hooks = [] if args.quiet else [Progress(sys.stderr)]
+    result = run(plan, out_dir=args.out, hooks=hooks)
+    s = result.summary
+    pv = s["platoon_vehicles"]
+    print(
+        f"{s['scenario']}: {s['simulated_s']:.0f} s simulated in {s['wall_clock_s']:.1f} s "
+        f"({s['real_time_factor']}x real time); platoon vehicles {pv['arrived']}/{pv['planned']} "
+        f"arrived, {s['collisions']} collisions, {s['teleports']} teleports, "
+        f"{s['red_light_violations']} red-light violations\nresults: {result.directory}"
+    )
+    return 0
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from platoon_sumo.scenario import load_scenario, prepare
+
+    plan = prepare(load_scenario(args.scenario))
+    members = sum(len(p.members) for p in plan.platoons)
+    print(
+        f"{args.scenario}: OK ({len(plan.platoons)} platoons, {members} vehicles, "
+        f"network {plan.net_file.name})"
+    )
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="platoon-sumo",
+        description="Laser-based vehicle platoons co-simulated with Eclipse SUMO.",
+    )
+    parser.add_argument("--version", action="version", version=platoon_sumo.__version__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    p_run = sub.add_parser("run", help="run a scenario and write a results folder")
+    p_run.add_argument("scenario", nargs="?", help=f"scenario YAML (default: {DEFAULT_SCENARIO})")
+    p_run.add_argument("--out", help="results folder (default: the scenario's outputs.directory)")
+    p_run.add_argument("--end", type=float, help="override simulation.end_s [s]")
+    p_run.add_argument("--seed", type=int, help="override simulation.seed")
+    p_run.add_argument("--quiet", action="store_true", help="no progress line")
+    p_run.set_defaults(func=_cmd_run)
+    p_val = sub.add_parser("validate", help="check a scenario file without running it")
+    p_val.add_argument("scenario")
+    p_val.set_defaults(func=_cmd_validate)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except PlatoonSumoError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

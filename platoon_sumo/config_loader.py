@@ -1,0 +1,162 @@
+"""Strict, typed loading of YAML mappings into frozen dataclasses.
+
+Every dataclass field is a key; unknown keys fail with a "did you mean", wrong types
+and failed range checks (ValueError raised in ``__post_init__``) fail with the key path.
+The schema is the dataclasses themselves, so docs and validation cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any, TypeVar, Union, get_args, get_origin, get_type_hints
+
+from platoon_sumo.errors import ScenarioError, did_you_mean
+
+T = TypeVar("T")
+
+_TYPE_WORDS = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}
+
+
+class FieldError(ValueError):
+    """A range/consistency error found inside a dataclass, tied to one of its keys."""
+
+    def __init__(self, key: str, message: str, hint: str | None = None):
+        super().__init__(message)
+        self.key = key
+        self.message = message
+        self.hint = hint
+
+
+def load_dataclass(cls: type[T], data: Any, file: str, path: str = "") -> T:
+    """Build `cls` from `data` (parsed YAML), raising ScenarioError at the first problem."""
+    return typing.cast(T, _convert(cls, data, file, path))
+
+
+def _join(path: str, key: str | int) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else key
+
+
+def _describe(tp: Any) -> str:
+    if tp in _TYPE_WORDS:
+        return _TYPE_WORDS[tp]
+    origin = get_origin(tp)
+    if origin is typing.Literal:
+        return "one of " + ", ".join(repr(a) for a in get_args(tp))
+    if origin in (list, tuple):
+        return "a list"
+    if origin in (dict, Mapping):
+        return "a mapping"
+    if dataclasses.is_dataclass(tp):
+        return "a mapping"
+    if origin in (Union, types.UnionType):
+        return " or ".join(_describe(a) for a in get_args(tp) if a is not type(None))
+    return getattr(tp, "__name__", str(tp))
+
+
+def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
+    origin = get_origin(tp)
+    if tp is Any:
+        return value
+    if origin in (Union, types.UnionType):
+        options = get_args(tp)
+        if value is None and type(None) in options:
+            return None
+        errors: list[ScenarioError] = []
+        for option in options:
+            if option is type(None):
+                continue
+            try:
+                return _convert(option, value, file, path)
+            except ScenarioError as exc:
+                errors.append(exc)
+        if len(errors) == 1:
+            raise errors[0]
+        raise ScenarioError(file, path, f"expected {_describe(tp)}, got {_show(value)}")
+    if origin is typing.Literal:
+        allowed = get_args(tp)
+        if value not in allowed:
+            hint = did_you_mean(str(value), [str(a) for a in allowed])
+            raise ScenarioError(file, path, f"expected {_describe(tp)}, got {_show(value)}", hint)
+        return value
+    if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+        return _convert_dataclass(tp, value, file, path)
+    if origin is tuple:
+        args = get_args(tp)
+        if not isinstance(value, list | tuple):
+            raise ScenarioError(file, path, f"expected a list, got {_show(value)}")
+        item_type = args[0] if args else Any
+        return tuple(_convert(item_type, v, file, _join(path, i)) for i, v in enumerate(value))
+    if origin in (dict, Mapping):
+        key_type, value_type = get_args(tp) or (str, Any)
+        if not isinstance(value, Mapping):
+            raise ScenarioError(file, path, f"expected a mapping, got {_show(value)}")
+        return types.MappingProxyType(
+            {
+                _convert(key_type, k, file, _join(path, str(k))): _convert(
+                    value_type, v, file, _join(path, str(k))
+                )
+                for k, v in value.items()
+            }
+        )
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ScenarioError(file, path, f"expected a number, got {_show(value)}")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(file, path, f"expected an integer, got {_show(value)}")
+        return value
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ScenarioError(file, path, f"expected true or false, got {_show(value)}")
+        return value
+    if tp is str:
+        if not isinstance(value, str):
+            raise ScenarioError(file, path, f"expected a string, got {_show(value)}")
+        return value
+    raise TypeError(f"unsupported schema type {tp!r} at {path}")  # a bug in our schema
+
+
+def _convert_dataclass(cls: type, value: Any, file: str, path: str) -> Any:
+    if not isinstance(value, Mapping):
+        raise ScenarioError(file, path, f"expected a mapping, got {_show(value)}")
+    hints = get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    for key in value:
+        if key not in fields:
+            hint = did_you_mean(str(key), fields)
+            allowed = ", ".join(fields)
+            raise ScenarioError(
+                file, _join(path, str(key)), f"unknown key (allowed: {allowed})", hint
+            )
+    kwargs: dict[str, Any] = {}
+    for name, field in fields.items():
+        if name in value:
+            kwargs[name] = _convert(hints[name], value[name], file, _join(path, name))
+        elif field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING:
+            raise ScenarioError(file, _join(path, name), "required key is missing")
+    try:
+        return cls(**kwargs)
+    except FieldError as exc:
+        raise ScenarioError(file, _join(path, exc.key), exc.message, exc.hint) from None
+    except ValueError as exc:
+        raise ScenarioError(file, path, str(exc)) from None
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, Mapping):
+        return "a mapping"
+    if isinstance(value, list):
+        return "a list"
+    return f"{value!r} ({type(value).__name__})"
+
+
+def require(condition: bool, key: str, message: str, hint: str | None = None) -> None:
+    """Range check for `__post_init__`: raises FieldError naming the key."""
+    if not condition:
+        raise FieldError(key, message, hint)

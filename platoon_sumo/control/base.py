@@ -1,0 +1,72 @@
+"""What a controller sees and returns, the protocol it implements and the registry.
+
+Controllers are pure decision makers: they get an Observation each step and return a
+Command. They never call SUMO (the loop reads the world once and hands them a view).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+from platoon_sumo.path import RoutePath
+from platoon_sumo.registry import Registry
+from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.sumo.backend import SignalAhead, VehicleAhead
+from platoon_sumo.vehicles import MotionLimits
+
+
+@dataclass(frozen=True)
+class Observation:
+    """One vehicle's view of the world at one step.
+
+    Pose is the vehicle model's reference point (rear axle for cars, wheel axle for
+    robots); `front_offset_m` is the distance from it to the front bumper along the heading.
+    """
+
+    time_s: float
+    dt_s: float
+    vehicle_id: str
+    role: str
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    speed_mps: float
+    front_offset_m: float
+    length_m: float
+    width_m: float
+    limits: MotionLimits
+    path: RoutePath
+    signal: SignalAhead | None = None
+    vehicle_ahead: VehicleAhead | None = None
+    """Nearest vehicle ahead on the route lanes (the traffic picture a car's ADAS has);
+    laser-only followers ignore it and use `scan`."""
+    scan: LaserScan | None = None
+
+
+@dataclass(frozen=True)
+class Command:
+    """Speed and heading command. `heading_rad`, when given, overrides `yaw_rate_radps`."""
+
+    speed_mps: float
+    yaw_rate_radps: float = 0.0
+    heading_rad: float | None = None
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """A platoon vehicle's brain. `Params` is a frozen dataclass loaded from the scenario."""
+
+    Params: ClassVar[type[Any]]
+
+    def __init__(self, params: Any) -> None: ...
+
+    def reset(self) -> None:
+        """Forget all state (called once before the vehicle's first step)."""
+
+    def step(self, observation: Observation) -> Command:
+        """Decide this step's command; must be deterministic given the observations."""
+        ...
+
+
+CONTROLLERS: Registry[type[Controller]] = Registry("controller")

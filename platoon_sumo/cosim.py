@@ -1,0 +1,391 @@
+"""The co-simulation loop: SUMO moves the humans, we move the platoons.
+
+One step (dt = SUMO's step length), in design.md's order:
+  snapshot of the world (read once) -> laser scans -> controllers -> vehicle models ->
+  poses pushed into SUMO -> simulationStep -> departures/arrivals -> safety checks ->
+  hooks (recorders and later features plug in there without editing this loop).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from platoon_sumo.control import Command, Controller, Observation
+from platoon_sumo.geometry import footprints_from_front_bumper, overlapping_pairs
+from platoon_sumo.path import RoutePath
+from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
+from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
+from platoon_sumo.sensors.raycast import scan_many
+from platoon_sumo.sumo.backend import SignalAhead, SumoBackend, VehicleAhead, WorldSnapshot
+from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class PlatoonVehicle:
+    """One of our vehicles while it is in the network."""
+
+    plan: MemberPlan
+    platoon: PlatoonPlan
+    controller: Controller
+    path: RoutePath
+    state: KinematicState
+    """One-element state of the model's reference point."""
+    route_s_m: float = 0.0
+    """Front bumper's progress along the route path."""
+    lateral_offset_m: float = 0.0
+    accel_mps2: float = 0.0
+    command: Command = field(default_factory=lambda: Command(0.0))
+    signal: SignalAhead | None = None
+    vehicle_ahead: VehicleAhead | None = None
+    scan: LaserScan | None = None
+
+    @property
+    def id(self) -> str:
+        return self.plan.vehicle_id
+
+    @property
+    def front_offset_m(self) -> float:
+        return self.platoon.config.vehicle.front_offset_m
+
+    def front_bumper(self) -> tuple[float, float]:
+        yaw = float(self.state.yaw_rad[0])
+        return (
+            float(self.state.x_m[0]) + self.front_offset_m * math.cos(yaw),
+            float(self.state.y_m[0]) + self.front_offset_m * math.sin(yaw),
+        )
+
+
+@dataclass(frozen=True)
+class Collision:
+    time_s: float
+    vehicle_a: str
+    vehicle_b: str
+
+
+@dataclass(frozen=True)
+class RedLightViolation:
+    time_s: float
+    vehicle_id: str
+    tls_id: str
+    link_index: int
+    state: str
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What happened in one step; handed to every hook."""
+
+    time_s: float
+    world: WorldSnapshot
+    vehicles: tuple[PlatoonVehicle, ...]
+    new_collisions: tuple[Collision, ...]
+    new_violations: tuple[RedLightViolation, ...]
+
+
+class StepHook(Protocol):
+    """Something that watches the run (recorders, progress bars, metrics)."""
+
+    def on_start(self, sim: CoSimulation) -> None: ...
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None: ...
+
+    def on_end(self, sim: CoSimulation) -> None: ...
+
+
+@dataclass
+class RunCounters:
+    collisions: list[Collision] = field(default_factory=list)
+    red_light_violations: list[RedLightViolation] = field(default_factory=list)
+    sumo_collisions: int = 0
+    teleports: int = 0
+    platoon_arrived: list[str] = field(default_factory=list)
+    platoon_departed: list[str] = field(default_factory=list)
+    arrived_total: int = 0
+    departed_total: int = 0
+    steps: int = 0
+
+
+class CoSimulation:
+    """Runs a RunPlan on a started SumoBackend; `run()` steps until the end time."""
+
+    def __init__(
+        self,
+        plan: RunPlan,
+        backend: SumoBackend,
+        hooks: Sequence[StepHook] = (),
+        rng: np.random.Generator | None = None,
+        static_segments: FloatArray | None = None,
+    ):
+        self.plan = plan
+        self.backend = backend
+        self.hooks = list(hooks)
+        sim = plan.scenario.simulation
+        self.dt_s = sim.step_s
+        self.end_s = sim.end_s
+        self.rng = rng if rng is not None else np.random.default_rng(sim.seed)
+        self.static_segments = static_segments
+        self.active: dict[str, PlatoonVehicle] = {}
+        self.counters = RunCounters()
+        self._pending = sorted(plan.platoons, key=lambda p: (p.config.depart_s, p.config.id))
+        self._waiting_insert: dict[str, MemberPlan] = {}
+        self._paths: dict[tuple[str, ...], RoutePath] = {}
+        self._overlapping: set[tuple[str, ...]] = set()
+        self._last_scan_s: dict[str, float] = {}
+        self.world: WorldSnapshot | None = None
+
+    # ------------------------------------------------------------------ running
+
+    def run(self) -> RunCounters:
+        for hook in self.hooks:
+            hook.on_start(self)
+        self.world = self.backend.snapshot()
+        while self.backend.time_s < self.end_s - 1e-9:
+            self.step()
+        for hook in self.hooks:
+            hook.on_end(self)
+        return self.counters
+
+    def step(self) -> None:
+        world = self.world if self.world is not None else self.backend.snapshot()
+        self._insert_due_platoons(world.time_s)
+        vehicles = list(self.active.values())
+        if vehicles:
+            self._scan(vehicles, world)
+            self._control(vehicles, world)
+        self.backend.step()
+        self.counters.steps += 1
+        self.counters.teleports += self.backend.teleport_count()
+        self.counters.sumo_collisions += sum(1 for _ in self.backend.sumo_collisions())
+        self._handle_arrivals()
+        world = self.world = self.backend.snapshot()
+        self._handle_departures(world)
+        vehicles = list(self.active.values())
+        violations = self._update_route_progress(vehicles)
+        collisions = self._check_collisions(world)
+        record = StepRecord(
+            world.time_s, world, tuple(vehicles), tuple(collisions), tuple(violations)
+        )
+        for hook in self.hooks:
+            hook.on_step(self, record)
+
+    # ------------------------------------------------------------------ insertion
+
+    def _insert_due_platoons(self, time_s: float) -> None:
+        while self._pending and self._pending[0].config.depart_s <= time_s + 1e-9:
+            platoon = self._pending.pop(0)
+            for member in platoon.members:
+                self.backend.add_vehicle(
+                    member.vehicle_id,
+                    platoon.edges,
+                    platoon.type_id,
+                    platoon.depart_lane,
+                    member.depart_pos_m,
+                )
+                self._waiting_insert[member.vehicle_id] = member
+
+    def _platoon_of(self, member: MemberPlan) -> PlatoonPlan:
+        return next(p for p in self.plan.platoons if p.config.id == member.platoon_id)
+
+    def _path_for(self, platoon: PlatoonPlan) -> RoutePath:
+        key = (*platoon.edges, str(platoon.depart_lane), str(platoon.config.vehicle.length_m))
+        if key not in self._paths:
+            spacing = min(max(platoon.config.vehicle.length_m / 8, 0.02), 0.5)
+            self._paths[key] = self.plan.network.route_path(
+                platoon.edges, spacing_m=spacing, first_lane=platoon.depart_lane
+            )
+        return self._paths[key]
+
+    def _handle_departures(self, world: WorldSnapshot) -> None:
+        for vid in self.backend.departed_ids():
+            self.counters.departed_total += 1
+            member = self._waiting_insert.pop(vid, None)
+            if member is None:
+                continue
+            platoon = self._platoon_of(member)
+            i = world.index[vid]
+            yaw = float(world.yaw_rad[i])
+            offset = platoon.config.vehicle.front_offset_m
+            state = KinematicState.of(
+                float(world.front_x_m[i]) - offset * math.cos(yaw),
+                float(world.front_y_m[i]) - offset * math.sin(yaw),
+                yaw,
+                0.0,
+            )
+            controller = member.controller_cls(member.controller_params)
+            controller.reset()
+            path = self._path_for(platoon)
+            vehicle = PlatoonVehicle(member, platoon, controller, path, state)
+            fx, fy = vehicle.front_bumper()
+            point = path.project(fx, fy)
+            vehicle.route_s_m, vehicle.lateral_offset_m = point.s_m, point.lateral_offset_m
+            vehicle.signal = self.backend.next_signal(vid)
+            self.active[vid] = vehicle
+            self.counters.platoon_departed.append(vid)
+
+    def _handle_arrivals(self) -> None:
+        arrived = self.backend.arrived_ids()
+        self.counters.arrived_total += len(arrived)
+        self.backend.forget(arrived)
+        for vid in arrived:
+            if self.active.pop(vid, None) is not None:
+                self.counters.platoon_arrived.append(vid)
+
+    # ------------------------------------------------------------------ sensing + control
+
+    def _scan(self, vehicles: list[PlatoonVehicle], world: WorldSnapshot) -> None:
+        """Scans for equipped vehicles whose sensor period has elapsed, batched per config."""
+        due: dict[LaserConfig, list[PlatoonVehicle]] = {}
+        for v in vehicles:
+            laser = v.platoon.laser
+            if laser is None:
+                continue
+            last = self._last_scan_s.get(v.id, -math.inf)
+            if world.time_s - last >= 1.0 / laser.rate_hz - 1e-9:
+                due.setdefault(laser, []).append(v)
+        if not due:
+            return
+        rects = self._footprints(world)
+        for laser, group in due.items():
+            bumpers = np.array([v.front_bumper() for v in group])
+            yaws = np.array([float(v.state.yaw_rad[0]) for v in group])
+            origins, headings = sensor_poses(bumpers[:, 0], bumpers[:, 1], yaws, laser)
+            exclude = np.array([world.index.get(v.id, -1) for v in group], dtype=np.int64)
+            ranges = scan_many(
+                origins, headings, laser, rectangles=rects, segments=self.static_segments,
+                exclude=exclude, rng=self.rng,
+            )  # fmt: skip
+            for k, v in enumerate(group):
+                v.scan = LaserScan.from_ranges(
+                    laser, ranges[k], origins[k], float(headings[k]), world.time_s
+                )
+                self._last_scan_s[v.id] = world.time_s
+
+    def _footprints(self, world: WorldSnapshot) -> FloatArray:
+        """Rectangles of every vehicle; ours from our own (exact) model state."""
+        x, y, yaw = world.front_x_m.copy(), world.front_y_m.copy(), world.yaw_rad.copy()
+        for vid, v in self.active.items():
+            i = world.index.get(vid)
+            if i is not None:
+                x[i], y[i] = v.front_bumper()
+                yaw[i] = float(v.state.yaw_rad[0])
+        return footprints_from_front_bumper(x, y, yaw, world.length_m, world.width_m)
+
+    def _control(self, vehicles: list[PlatoonVehicle], world: WorldSnapshot) -> None:
+        for v in vehicles:
+            cfg = v.platoon.config.vehicle
+            obs = Observation(
+                time_s=world.time_s,
+                dt_s=self.dt_s,
+                vehicle_id=v.id,
+                role=v.plan.role,
+                x_m=float(v.state.x_m[0]),
+                y_m=float(v.state.y_m[0]),
+                yaw_rad=float(v.state.yaw_rad[0]),
+                speed_mps=float(v.state.speed_mps[0]),
+                front_offset_m=cfg.front_offset_m,
+                length_m=cfg.length_m,
+                width_m=cfg.width_m,
+                limits=cfg.limits(),
+                path=v.path,
+                signal=v.signal,
+                vehicle_ahead=v.vehicle_ahead,
+                scan=v.scan,
+            )
+            v.command = v.controller.step(obs)
+        # Integrate per platoon: members share a model and limits, so one vectorised call.
+        by_platoon: dict[str, list[PlatoonVehicle]] = {}
+        for v in vehicles:
+            by_platoon.setdefault(v.platoon.config.id, []).append(v)
+        ids: list[str] = []
+        fx, fy, yaws, speeds = [], [], [], []
+        for group in by_platoon.values():
+            platoon = group[0].platoon
+            limits = platoon.config.vehicle.limits()
+            state = KinematicState.of(
+                [float(v.state.x_m[0]) for v in group],
+                [float(v.state.y_m[0]) for v in group],
+                [float(v.state.yaw_rad[0]) for v in group],
+                [float(v.state.speed_mps[0]) for v in group],
+            )
+            yaw_rate = np.array(
+                [
+                    float(heading_to_yaw_rate(v.command.heading_rad, v.state.yaw_rad[0],
+                                              self.dt_s, limits.max_yaw_rate_radps)[0])
+                    if v.command.heading_rad is not None else v.command.yaw_rate_radps
+                    for v in group
+                ]
+            )  # fmt: skip
+            speed_cmd = np.array([v.command.speed_mps for v in group])
+            new = platoon.model().step(state, speed_cmd, yaw_rate, limits, self.dt_s)
+            for k, v in enumerate(group):
+                v.accel_mps2 = (float(new.speed_mps[k]) - float(v.state.speed_mps[0])) / self.dt_s
+                v.state = new.take([k])
+                bx, by = v.front_bumper()
+                ids.append(v.id)
+                fx.append(bx)
+                fy.append(by)
+                yaws.append(float(new.yaw_rad[k]))
+                speeds.append(float(new.speed_mps[k]))
+        self.backend.move(ids, np.array(fx), np.array(fy), np.array(yaws), np.array(speeds))
+
+    # ------------------------------------------------------------------ bookkeeping
+
+    def _update_route_progress(self, vehicles: list[PlatoonVehicle]) -> list[RedLightViolation]:
+        violations: list[RedLightViolation] = []
+        time_s = self.backend.time_s
+        for v in vehicles:
+            fx, fy = v.front_bumper()
+            window = max(10.0, 4.0 * v.platoon.config.vehicle.length_m)
+            point = v.path.project(fx, fy, s_hint_m=v.route_s_m, window_m=window)
+            v.route_s_m, v.lateral_offset_m = point.s_m, point.lateral_offset_m
+            previous, v.signal = v.signal, self.backend.next_signal(v.id)
+            v.vehicle_ahead = self.backend.vehicle_ahead(v.id, self._ahead_horizon_m(v))
+            if previous is not None and previous.state in "rRu" and _passed(previous, v.signal):
+                violation = RedLightViolation(
+                    time_s, v.id, previous.tls_id, previous.link_index, previous.state
+                )
+                violations.append(violation)
+                self.counters.red_light_violations.append(violation)
+            if v.route_s_m >= v.path.length_m - 0.05:
+                self.backend.remove(v.id)
+                self.backend.forget([v.id])
+                del self.active[v.id]
+                self.counters.platoon_arrived.append(v.id)
+        return violations
+
+    @staticmethod
+    def _ahead_horizon_m(v: PlatoonVehicle) -> float:
+        """Look as far ahead as a full comfortable stop from top speed needs, and more."""
+        vehicle = v.platoon.config.vehicle
+        return max(20.0 * vehicle.length_m, vehicle.max_speed_mps**2 / vehicle.max_decel_mps2 * 2)
+
+    def _check_collisions(self, world: WorldSnapshot) -> list[Collision]:
+        """Footprint overlaps of pairs involving a platoon vehicle (SUMO's check is per lane)."""
+        if not self.active or len(world) < 2:
+            self._overlapping = set()
+            return []
+        rects = self._footprints(world)
+        subjects = np.array([world.index[vid] for vid in self.active if vid in world.index])
+        pairs = overlapping_pairs(rects, subjects) if len(subjects) else np.empty((0, 2), int)
+        now = {tuple(sorted((world.ids[i], world.ids[j]))) for i, j in pairs}
+        new = [Collision(world.time_s, a, b) for a, b in sorted(now - self._overlapping)]
+        self._overlapping = now
+        self.counters.collisions.extend(new)
+        return new
+
+
+def _passed(previous: SignalAhead, current: SignalAhead | None) -> bool:
+    """Did the vehicle drive over `previous`'s stop line during the last step?"""
+    same = current is not None and (current.tls_id, current.link_index) == (
+        previous.tls_id,
+        previous.link_index,
+    )
+    return not same and previous.distance_m < 50.0

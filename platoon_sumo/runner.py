@@ -1,0 +1,169 @@
+"""One run of a scenario, from file to results folder.
+
+The folder holds the scenario file, the generated inputs, the trajectory table, SUMO's
+tripinfo and `summary.json`. `summary.json` is written last, with status "complete";
+a run that fails leaves `FAILED.txt` instead, so half-written results never pass for
+complete ones.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import platform
+import shutil
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import platoon_sumo
+from platoon_sumo.cosim import CoSimulation, RunCounters, StepHook
+from platoon_sumo.recorder import TrajectoryRecorder
+from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
+from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
+from platoon_sumo.sumo.shapes import read_wall_segments
+from platoon_sumo.traffic import write_traffic_inputs
+
+
+@dataclass(frozen=True)
+class RunResult:
+    directory: Path
+    summary: dict[str, Any]
+
+
+def load_plan(path: str | Path, end_s: float | None = None, seed: int | None = None) -> RunPlan:
+    """Load and check a scenario, with command-line overrides applied."""
+    source = load_scenario(path)
+    sim = source.scenario.simulation
+    changes: dict[str, Any] = {}
+    if end_s is not None:
+        changes["end_s"] = end_s
+    if seed is not None:
+        changes["seed"] = seed
+    if changes:
+        try:
+            new_sim = dataclasses.replace(sim, **changes)
+        except ValueError as exc:
+            from platoon_sumo.errors import ScenarioError
+
+            raise ScenarioError(str(path), "simulation", f"command-line override: {exc}") from None
+        source = ScenarioSource(
+            dataclasses.replace(source.scenario, simulation=new_sim), source.path, source.text
+        )
+    return prepare(source)
+
+
+def run(
+    plan: RunPlan,
+    out_dir: str | Path | None = None,
+    hooks: Sequence[StepHook] = (),
+) -> RunResult:
+    sc = plan.scenario
+    directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name)
+    directory.mkdir(parents=True, exist_ok=True)
+    for stale in ("summary.json", "FAILED.txt"):
+        (directory / stale).unlink(missing_ok=True)
+    shutil.copyfile(plan.source.path, directory / "scenario.yaml")
+    try:
+        return _run(plan, directory, hooks)
+    except BaseException as exc:
+        (directory / "FAILED.txt").write_text(f"{type(exc).__name__}: {exc}\n")
+        raise
+
+
+def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult:
+    sc = plan.scenario
+    generated = write_traffic_inputs(plan, directory / "inputs")
+    options = SumoOptions(
+        net_file=str(plan.net_file),
+        step_s=sc.simulation.step_s,
+        seed=sc.simulation.seed,
+        begin_s=sc.simulation.begin_s,
+        route_files=tuple(str(p) for p in (*plan.route_files, *generated)),
+        additional_files=tuple(str(p) for p in plan.additional_files),
+        lateral_resolution_m=sc.simulation.lateral_resolution_m,
+        tripinfo_file=str(directory / "tripinfo.csv") if sc.outputs.tripinfo else None,
+        statistics_file=str(directory / "sumo_statistics.xml"),
+    )
+    all_hooks: list[StepHook] = []
+    recorder = None
+    if sc.outputs.trajectories:
+        recorder = TrajectoryRecorder(directory / "trajectories.csv", sc.outputs.chunk_rows)
+        all_hooks.append(recorder)
+    all_hooks.extend(hooks)
+    walls = read_wall_segments(plan.additional_files)
+    wall_start = time.perf_counter()
+    backend = SumoBackend(options)
+    backend.start()
+    try:
+        for platoon in plan.platoons:
+            v = platoon.config.vehicle
+            backend.add_vehicle_type(
+                platoon.type_id, v.length_m, v.width_m, v.min_gap_m, v.max_speed_mps,
+                v.max_accel_mps2, v.max_decel_mps2, v.vclass,
+            )  # fmt: skip
+        sim = CoSimulation(
+            plan,
+            backend,
+            all_hooks,
+            rng=np.random.default_rng(sc.simulation.seed),
+            static_segments=walls if len(walls) else None,
+        )
+        counters = sim.run()
+        end_time = backend.time_s
+    finally:
+        backend.close()
+    wall_s = time.perf_counter() - wall_start
+    summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
+    with (directory / "summary.json").open("w") as f:
+        json.dump(summary, f, indent=2)
+    return RunResult(directory, summary)
+
+
+def _summary(
+    plan: RunPlan,
+    counters: RunCounters,
+    end_time_s: float,
+    wall_s: float,
+    still_running: int,
+) -> dict[str, Any]:
+    sc = plan.scenario
+    sim_s = end_time_s - sc.simulation.begin_s
+    planned = sum(len(p.members) for p in plan.platoons)
+    return {
+        "status": "complete",
+        "scenario": sc.name,
+        "scenario_file": str(plan.source.path),
+        "scenario_sha256": plan.source.sha256,
+        "seed": sc.simulation.seed,
+        "versions": {
+            "platoon_sumo": platoon_sumo.__version__,
+            "sumo": sumo_version(),
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+        },
+        "simulated_s": sim_s,
+        "wall_clock_s": round(wall_s, 3),
+        "real_time_factor": round(sim_s / wall_s, 2) if wall_s > 0 else None,
+        "steps": counters.steps,
+        "platoon_vehicles": {
+            "planned": planned,
+            "departed": len(counters.platoon_departed),
+            "arrived": len(counters.platoon_arrived),
+            "still_running": still_running,
+        },
+        "all_vehicles": {
+            "departed": counters.departed_total,
+            "arrived": counters.arrived_total,
+        },
+        "collisions": len(counters.collisions),
+        "collision_events": [dataclasses.asdict(c) for c in counters.collisions],
+        "sumo_collisions": counters.sumo_collisions,
+        "teleports": counters.teleports,
+        "red_light_violations": len(counters.red_light_violations),
+        "red_light_events": [dataclasses.asdict(v) for v in counters.red_light_violations],
+    }

@@ -1,0 +1,567 @@
+"""Scenario files: YAML -> frozen dataclasses -> a checked, resolved run plan.
+
+`load_scenario` checks the file's shape (keys, types, ranges); `prepare` checks it
+against the world (files exist, edges exist, routes connect, platoons fit, controllers
+and their parameters are known). Both raise ScenarioError naming file and key path.
+Relative paths in a scenario are relative to the scenario file; `sumo:<path>` points
+inside the installed eclipse-sumo package (e.g. `sumo:tools/game/DRT/osm.net.xml`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from platoon_sumo.config_loader import load_dataclass, require
+from platoon_sumo.control import CONTROLLERS, Controller
+from platoon_sumo.errors import ScenarioError
+from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
+from platoon_sumo.sumo.backend import resolve_sumo_path
+from platoon_sumo.sumo.network import Network, RouteError
+from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
+
+CAR_FOLLOW_MODELS = (
+    "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "IIDM", "ACC",
+    "CACC", "W99", "Wiedemann", "SmartSK", "Daniel1", "PWagner2009", "BKerner", "Rail", "CC",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    step_s: float = 0.1
+    """SUMO step length and control period [s]."""
+    end_s: float = 600.0
+    """Simulated time at which the run stops [s]."""
+    begin_s: float = 0.0
+    seed: int = 42
+    """Seeds SUMO and every random generator of ours."""
+    lateral_resolution_m: float = 0.8
+    """SUMO sublane resolution; without it pushed poses snap to lane centres."""
+
+    def __post_init__(self) -> None:
+        require(self.step_s > 0, "step_s", f"must be > 0 s, got {self.step_s}")
+        require(self.step_s <= 1.0, "step_s", f"must be <= 1 s, got {self.step_s}")
+        require(self.end_s > self.begin_s, "end_s", "must be after begin_s")
+        require(self.seed >= 0, "seed", "must be >= 0")
+        require(self.lateral_resolution_m > 0, "lateral_resolution_m", "must be > 0")
+
+
+@dataclass(frozen=True)
+class NetworkConfig:
+    net_file: str | None = None
+    """A .net.xml (relative to the scenario file, or `sumo:<path in eclipse-sumo>`)."""
+    sumocfg: str | None = None
+    """A .sumocfg: its net, route and additional files are used."""
+    route_files: tuple[str, ...] = ()
+    additional_files: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        require(
+            (self.net_file is None) != (self.sumocfg is None),
+            "net_file",
+            "give exactly one of network.net_file and network.sumocfg",
+        )
+
+
+@dataclass(frozen=True)
+class VehicleTypeConfig:
+    """A SUMO vehicle type for human-driven traffic, with its driver model."""
+
+    id: str
+    car_follow_model: str = "Krauss"
+    probability: float = 1.0
+    """Share of this type in the background mix."""
+    vclass: str = "passenger"
+    length_m: float = 5.0
+    width_m: float = 1.8
+    min_gap_m: float = 2.5
+    max_speed_mps: float = 55.0
+    accel_mps2: float = 2.6
+    decel_mps2: float = 4.5
+    emergency_decel_mps2: float = 9.0
+    sigma: float = 0.5
+    """Driver imperfection (Krauss family)."""
+    tau_s: float = 1.0
+    """Desired time headway."""
+    speed_factor: float = 1.0
+    speed_dev: float = 0.1
+    lane_change_model: str = "SL2015"
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """Further attributes written as-is onto the vType (e.g. `delta` for IDM)."""
+
+    def __post_init__(self) -> None:
+        require(
+            self.car_follow_model in CAR_FOLLOW_MODELS,
+            "car_follow_model",
+            f"unknown car-following model '{self.car_follow_model}' "
+            f"(known: {', '.join(CAR_FOLLOW_MODELS)})",
+        )
+        for key in ("length_m", "width_m", "max_speed_mps", "accel_mps2", "decel_mps2", "tau_s"):
+            require(getattr(self, key) > 0, key, "must be > 0")
+        require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
+        require(self.probability > 0, "probability", "must be > 0")
+        require(0 <= self.sigma <= 1, "sigma", "must be in [0, 1]")
+        require(
+            self.emergency_decel_mps2 >= self.decel_mps2,
+            "emergency_decel_mps2",
+            "must be >= decel_mps2",
+        )
+
+
+@dataclass(frozen=True)
+class FlowConfig:
+    from_edge: str
+    to_edge: str
+    vehs_per_hour: float
+    via_edges: tuple[str, ...] = ()
+    begin_s: float = 0.0
+    end_s: float | None = None
+    """Defaults to the simulation's end."""
+    type: str | None = None
+    """A vehicle type id; defaults to the background mix of `traffic.vehicle_types`."""
+
+    def __post_init__(self) -> None:
+        require(self.vehs_per_hour > 0, "vehs_per_hour", "must be > 0")
+        require(self.end_s is None or self.end_s > self.begin_s, "end_s", "must be after begin_s")
+
+
+@dataclass(frozen=True)
+class RandomTripsConfig:
+    """Random trips generated at run time with SUMO's randomTrips.py, routed by SUMO."""
+
+    period_s: float
+    """Mean time between two departures [s] (e.g. 0.5 = 7,200 vehicles an hour)."""
+    begin_s: float = 0.0
+    end_s: float | None = None
+    seed: int | None = None
+    """Defaults to the simulation seed."""
+    min_distance_m: float = 300.0
+    fringe_factor: float = 5.0
+    """How much more likely trips start/end at the network border than inside."""
+
+    def __post_init__(self) -> None:
+        require(self.period_s > 0, "period_s", "must be > 0")
+        require(self.min_distance_m >= 0, "min_distance_m", "must be >= 0")
+        require(self.fringe_factor >= 1, "fringe_factor", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    vehicle_types: tuple[VehicleTypeConfig, ...] = ()
+    route_files: tuple[str, ...] = ()
+    flows: tuple[FlowConfig, ...] = ()
+    random_trips: RandomTripsConfig | None = None
+
+
+@dataclass(frozen=True)
+class RouteConfig:
+    edges: tuple[str, ...] = ()
+    from_edge: str | None = None
+    to_edge: str | None = None
+    via_edges: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        require(
+            bool(self.edges) != (self.from_edge is not None),
+            "edges",
+            "give either route.edges or route.from_edge + route.to_edge",
+        )
+        require(
+            (self.from_edge is None) == (self.to_edge is None),
+            "to_edge",
+            "from_edge and to_edge go together",
+        )
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    """Geometry and limits of the platoon's vehicles (all members alike)."""
+
+    model: str = "bicycle"
+    """A registered vehicle model: bicycle (cars) or unicycle (differential-drive robots)."""
+    length_m: float = 4.5
+    width_m: float = 1.8
+    min_gap_m: float = 2.5
+    """What SUMO drivers keep behind this vehicle when stopped."""
+    wheelbase_m: float = 2.7
+    rear_overhang_m: float | None = None
+    """Rear bumper to reference point (rear axle); default centres the wheelbase."""
+    max_speed_mps: float = 16.7
+    max_accel_mps2: float = 2.5
+    max_decel_mps2: float = 7.5
+    max_yaw_rate_radps: float = 1.0
+    max_steer_rad: float = 0.6
+    vclass: str = "passenger"
+
+    def __post_init__(self) -> None:
+        require(
+            self.model in VEHICLE_MODELS,
+            "model",
+            f"unknown vehicle model '{self.model}' (known: {', '.join(VEHICLE_MODELS.names())})",
+        )
+        for key in ("length_m", "width_m", "wheelbase_m", "max_speed_mps", "max_accel_mps2",
+                    "max_decel_mps2", "max_yaw_rate_radps"):  # fmt: skip
+            require(getattr(self, key) > 0, key, "must be > 0")
+        require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
+        require(0 < self.max_steer_rad < math.pi / 2, "max_steer_rad", "must be in (0, pi/2)")
+        require(
+            self.rear_overhang_m is None or 0 <= self.rear_overhang_m < self.length_m,
+            "rear_overhang_m",
+            "must be in [0, length_m)",
+        )
+
+    @property
+    def front_offset_m(self) -> float:
+        """Reference point (rear axle / wheel axle) to front bumper, along the heading."""
+        if self.rear_overhang_m is not None:
+            return self.length_m - self.rear_overhang_m
+        if self.model == "unicycle":
+            return self.length_m / 2
+        return self.length_m - max(self.length_m - self.wheelbase_m, 0.0) / 2
+
+    def limits(self) -> MotionLimits:
+        return MotionLimits(
+            max_speed_mps=self.max_speed_mps,
+            max_accel_mps2=self.max_accel_mps2,
+            max_decel_mps2=self.max_decel_mps2,
+            max_yaw_rate_radps=self.max_yaw_rate_radps,
+            max_steer_rad=self.max_steer_rad,
+            wheelbase_m=self.wheelbase_m,
+        )
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    type: str = "route_following"
+    """A registered controller name or `package.module:Class`."""
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """A laser scanner: a preset name, optionally with fields overridden."""
+
+    preset: str = "utm30lx"
+    overrides: Mapping[str, float | int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        require(
+            self.preset in LASER_PRESETS,
+            "preset",
+            f"unknown laser preset '{self.preset}' (known: {', '.join(sorted(LASER_PRESETS))})",
+        )
+
+
+@dataclass(frozen=True)
+class PlatoonConfig:
+    id: str
+    route: RouteConfig
+    members: int = 1
+    depart_s: float = 0.0
+    spacing_m: float = 8.0
+    """Initial bumper-to-bumper gap between members [m]."""
+    depart_pos_m: float | None = None
+    """Leader's front bumper on the first edge [m]; default: just room for everyone."""
+    depart_lane: int | None = None
+    vehicle: VehicleConfig = VehicleConfig()
+    leader: ControllerConfig = ControllerConfig()
+    follower: ControllerConfig = ControllerConfig()
+    sensor: SensorConfig | None = None
+    """Laser scanner of every member (None: no scan in the observations)."""
+
+    def __post_init__(self) -> None:
+        require(
+            bool(self.id) and " " not in self.id, "id", "must be a non-empty name without spaces"
+        )
+        require(self.members >= 1, "members", "must be >= 1")
+        require(self.members <= 100, "members", "must be <= 100")
+        require(self.spacing_m > 0, "spacing_m", "must be > 0")
+        require(self.depart_s >= 0, "depart_s", "must be >= 0")
+
+    def member_ids(self) -> list[str]:
+        return [f"{self.id}.{k}" for k in range(self.members)]
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    directory: str | None = None
+    """Results folder (relative to the working directory); default `results/<name>`."""
+    trajectories: bool = True
+    """Per-step table of the platoon vehicles (trajectories.csv)."""
+    tripinfo: bool = True
+    """SUMO's tripinfo of every vehicle (tripinfo.csv)."""
+    chunk_rows: int = 20_000
+    """Rows buffered before the trajectory table is appended to disk."""
+
+    def __post_init__(self) -> None:
+        require(self.chunk_rows >= 1, "chunk_rows", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    simulation: SimulationConfig = SimulationConfig()
+    network: NetworkConfig = NetworkConfig(net_file="")
+    traffic: TrafficConfig = TrafficConfig()
+    platoons: tuple[PlatoonConfig, ...] = ()
+    outputs: OutputConfig = OutputConfig()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        ids = [p.id for p in self.platoons]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        require(not duplicates, "platoons", f"duplicate platoon id(s): {', '.join(duplicates)}")
+
+
+# --------------------------------------------------------------------------- loading
+
+
+@dataclass(frozen=True)
+class ScenarioSource:
+    """A scenario with where it came from (for relative paths, messages and the hash)."""
+
+    scenario: Scenario
+    path: Path
+    text: str
+
+    @property
+    def sha256(self) -> str:
+        return hashlib.sha256(self.text.encode()).hexdigest()
+
+    def resolve(self, value: str) -> Path:
+        if value.startswith("sumo:"):
+            return resolve_sumo_path(value)
+        p = Path(value)
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+
+def load_scenario(path: str | Path) -> ScenarioSource:
+    """Read and shape-check a scenario file (no network access yet)."""
+    p = Path(path)
+    shown = str(path)
+    if not p.is_file():
+        raise ScenarioError(shown, "", "scenario file not found", "check the path")
+    text = p.read_text(encoding="utf-8")
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else ""
+        raise ScenarioError(
+            shown, where, f"not valid YAML: {getattr(exc, 'problem', exc)}"
+        ) from None
+    if not isinstance(data, Mapping):
+        raise ScenarioError(shown, "", "expected a mapping of sections at the top level")
+    if "network" not in data:
+        raise ScenarioError(shown, "network", "required key is missing")
+    data = {"name": p.stem, **data}
+    return ScenarioSource(load_dataclass(Scenario, data, shown), p.resolve(), text)
+
+
+# --------------------------------------------------------------------------- preparing
+
+
+@dataclass(frozen=True)
+class MemberPlan:
+    vehicle_id: str
+    platoon_id: str
+    index: int
+    role: str
+    controller_cls: type[Controller]
+    controller_params: Any
+    depart_pos_m: float
+
+
+@dataclass(frozen=True)
+class PlatoonPlan:
+    config: PlatoonConfig
+    edges: tuple[str, ...]
+    depart_lane: int
+    members: tuple[MemberPlan, ...]
+    model: type[VehicleModel]
+    laser: LaserConfig | None
+
+    @property
+    def type_id(self) -> str:
+        return f"platoon_{self.config.id}"
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """A scenario checked against its files and network, ready to run."""
+
+    source: ScenarioSource
+    net_file: Path
+    route_files: tuple[Path, ...]
+    additional_files: tuple[Path, ...]
+    network: Network
+    platoons: tuple[PlatoonPlan, ...]
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.source.scenario
+
+
+def prepare(source: ScenarioSource) -> RunPlan:
+    """Check a loaded scenario against the filesystem and the network."""
+    sc = source.scenario
+    file = str(source.path)
+    net_file, cfg_routes, cfg_adds = _network_files(source)
+    route_files = cfg_routes + tuple(
+        _existing(source, v, f"network.route_files[{i}]")
+        for i, v in enumerate(sc.network.route_files)
+    )
+    route_files += tuple(
+        _existing(source, v, f"traffic.route_files[{i}]")
+        for i, v in enumerate(sc.traffic.route_files)
+    )
+    additional = cfg_adds + tuple(
+        _existing(source, v, f"network.additional_files[{i}]")
+        for i, v in enumerate(sc.network.additional_files)
+    )
+    try:
+        network = Network(net_file)
+    except Exception as exc:  # sumolib raises plain exceptions on a broken file
+        raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
+    _check_traffic(sc, network, file)
+    platoons = tuple(_prepare_platoon(p, i, network, file) for i, p in enumerate(sc.platoons))
+    return RunPlan(source, net_file, route_files, additional, network, platoons)
+
+
+def _existing(source: ScenarioSource, value: str, key: str) -> Path:
+    path = source.resolve(value)
+    if not path.is_file():
+        raise ScenarioError(str(source.path), key, f"file not found: {path}")
+    return path
+
+
+def _network_files(source: ScenarioSource) -> tuple[Path, tuple[Path, ...], tuple[Path, ...]]:
+    net = source.scenario.network
+    if net.net_file is not None:
+        return _existing(source, net.net_file, "network.net_file"), (), ()
+    assert net.sumocfg is not None  # guaranteed by NetworkConfig
+    cfg = _existing(source, net.sumocfg, "network.sumocfg")
+    try:
+        root = ET.parse(cfg).getroot()
+    except ET.ParseError as exc:
+        raise ScenarioError(str(source.path), "network.sumocfg", f"{cfg}: {exc}") from None
+
+    def values(tag: str) -> list[Path]:
+        found = root.find(f"input/{tag}")
+        if found is None:
+            return []
+        return [(cfg.parent / v.strip()).resolve() for v in found.get("value", "").split(",") if v]
+
+    nets = values("net-file")
+    if not nets:
+        raise ScenarioError(str(source.path), "network.sumocfg", f"{cfg} names no net-file")
+    for p in [*nets, *values("route-files"), *values("additional-files")]:
+        if not p.is_file():
+            raise ScenarioError(str(source.path), "network.sumocfg", f"{cfg} names missing {p}")
+    return nets[0], tuple(values("route-files")), tuple(values("additional-files"))
+
+
+def _check_traffic(sc: Scenario, network: Network, file: str) -> None:
+    type_ids = {t.id for t in sc.traffic.vehicle_types}
+    for i, flow in enumerate(sc.traffic.flows):
+        key = f"traffic.flows[{i}]"
+        _route_edges(network, file, key, (), flow.from_edge, flow.to_edge, flow.via_edges)
+        if flow.type is not None and flow.type not in type_ids | {"DEFAULT_VEHTYPE"}:
+            raise ScenarioError(
+                file, f"{key}.type", f"unknown vehicle type '{flow.type}'",
+                "define it under traffic.vehicle_types "
+                f"(defined: {', '.join(sorted(type_ids)) or 'none'})",
+            )  # fmt: skip
+
+
+def _route_edges(
+    network: Network,
+    file: str,
+    key: str,
+    edges: tuple[str, ...],
+    from_edge: str | None,
+    to_edge: str | None,
+    via: tuple[str, ...],
+) -> tuple[str, ...]:
+    try:
+        if edges:
+            network.check_edges(edges)
+            return edges
+        assert from_edge is not None and to_edge is not None
+        return tuple(network.shortest_route(from_edge, to_edge, via))
+    except RouteError as exc:
+        if edges:
+            where = f"{key}.edges[{exc.index}]" if exc.index is not None else f"{key}.edges"
+        else:
+            waypoints = ["from_edge", *[f"via_edges[{j}]" for j in range(len(via))], "to_edge"]
+            idx = exc.index if exc.index is not None else None
+            where = f"{key}.{waypoints[idx]}" if idx is not None else key
+        raise ScenarioError(file, where, str(exc), exc.hint) from None
+
+
+def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> PlatoonPlan:
+    key = f"platoons[{i}]"
+    r = p.route
+    edges = _route_edges(
+        network, file, f"{key}.route", r.edges, r.from_edge, r.to_edge, r.via_edges
+    )
+    first = edges[0]
+    lanes = network.lane_count(first)
+    depart_lane = p.depart_lane if p.depart_lane is not None else 0
+    if not 0 <= depart_lane < lanes:
+        raise ScenarioError(
+            file,
+            f"{key}.depart_lane",
+            f"edge '{first}' has lanes 0..{lanes - 1}, got {depart_lane}",
+        )
+    need = p.members * p.vehicle.length_m + (p.members - 1) * p.spacing_m
+    edge_len = network.edge_length_m(first)
+    depart_pos = p.depart_pos_m if p.depart_pos_m is not None else need + 0.1
+    if depart_pos < need or depart_pos > edge_len:
+        raise ScenarioError(
+            file,
+            f"{key}.members",
+            f"{p.members} members of {p.vehicle.length_m} m with {p.spacing_m} m gaps need "
+            f"{need:.1f} m behind the leader's depart position {depart_pos:.1f} m on edge "
+            f"'{first}' ({edge_len:.1f} m long)",
+            "start the route on a longer edge, or use fewer members or a smaller spacing_m",
+        )
+    members = []
+    for k, vid in enumerate(p.member_ids()):
+        role = "leader" if k == 0 else "follower"
+        ctrl = p.leader if k == 0 else p.follower
+        ctrl_key = f"{key}.{role}"
+        try:
+            cls = CONTROLLERS.get(ctrl.type)
+        except LookupError as exc:
+            raise ScenarioError(file, f"{ctrl_key}.type", str(exc)) from None
+        if not isinstance(getattr(cls, "Params", None), type):
+            raise ScenarioError(
+                file, f"{ctrl_key}.type",
+                f"'{ctrl.type}' is not a controller: "
+                "it needs a Params dataclass, reset() and step()",
+            )  # fmt: skip
+        params = load_dataclass(cls.Params, dict(ctrl.params), file, f"{ctrl_key}.params")
+        pos = depart_pos - k * (p.vehicle.length_m + p.spacing_m)
+        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos))
+    laser = None
+    if p.sensor is not None:
+        try:
+            laser = LaserConfig.preset(p.sensor.preset, **dict(p.sensor.overrides))
+        except (TypeError, ValueError) as exc:
+            raise ScenarioError(file, f"{key}.sensor.overrides", str(exc)) from None
+    return PlatoonPlan(
+        config=p,
+        edges=edges,
+        depart_lane=depart_lane,
+        members=tuple(members),
+        model=VEHICLE_MODELS.get(p.vehicle.model),
+        laser=laser,
+    )

@@ -1,0 +1,335 @@
+"""The only module that talks to SUMO (through libsumo).
+
+State is read once per step, in batch, into numpy arrays; platoon vehicles are pushed
+back with moveToXY + setPreviousSpeed. Every libsumo failure becomes a SumoError that
+says what we were doing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import libsumo
+import numpy as np
+import sumo
+from numpy.typing import NDArray
+
+from platoon_sumo.errors import SumoError
+
+
+def sumo_binary(name: str = "sumo") -> str:
+    """Path of a SUMO executable shipped in the eclipse-sumo wheel (no SUMO_HOME needed)."""
+    path = os.path.join(sumo.SUMO_HOME, "bin", name)
+    if not os.path.exists(path):
+        raise SumoError(f"SUMO executable '{name}' not found in {sumo.SUMO_HOME}/bin")
+    return path
+
+
+def sumo_home() -> str:
+    return str(sumo.SUMO_HOME)
+
+
+def sumo_version() -> str:
+    return str(libsumo.getVersion()[1])
+
+
+@dataclass(frozen=True)
+class SumoOptions:
+    """Everything `SumoBackend.start` passes to SUMO."""
+
+    net_file: str
+    step_s: float
+    seed: int
+    begin_s: float = 0.0
+    route_files: tuple[str, ...] = ()
+    additional_files: tuple[str, ...] = ()
+    lateral_resolution_m: float | None = 0.8
+    tripinfo_file: str | None = None
+    statistics_file: str | None = None
+    extra_args: tuple[str, ...] = ()
+
+    def command(self) -> list[str]:
+        cmd = [
+            sumo_binary("sumo"),
+            "--net-file", self.net_file,
+            "--step-length", repr(self.step_s),
+            "--begin", repr(self.begin_s),
+            "--seed", str(self.seed),
+            "--time-to-teleport", "-1",
+            "--collision.action", "warn",
+            "--collision.check-junctions", "true",
+            "--no-step-log", "true",
+            "--no-warnings", "true",
+            "--duration-log.disable", "true",
+            "--xml-validation", "never",
+        ]  # fmt: skip
+        if self.lateral_resolution_m is not None:
+            cmd += ["--lateral-resolution", repr(self.lateral_resolution_m)]
+        if self.route_files:
+            cmd += ["--route-files", ",".join(self.route_files)]
+        if self.additional_files:
+            cmd += ["--additional-files", ",".join(self.additional_files)]
+        if self.tripinfo_file:
+            cmd += ["--tripinfo-output", self.tripinfo_file]
+            cmd += ["--tripinfo-output.write-unfinished", "true"]
+        if self.statistics_file:
+            cmd += ["--statistic-output", self.statistics_file]
+        return [*cmd, *self.extra_args]
+
+
+@dataclass(frozen=True)
+class WorldSnapshot:
+    """Every vehicle in the network at one instant. Positions are FRONT BUMPER centres."""
+
+    time_s: float
+    ids: tuple[str, ...]
+    front_x_m: NDArray[np.float64]
+    front_y_m: NDArray[np.float64]
+    yaw_rad: NDArray[np.float64]
+    length_m: NDArray[np.float64]
+    width_m: NDArray[np.float64]
+    speed_mps: NDArray[np.float64]
+    lane_ids: tuple[str, ...]
+    index: dict[str, int] = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True)
+class SignalAhead:
+    """The next traffic light on a vehicle's route: link state and distance to its stop line."""
+
+    tls_id: str
+    link_index: int
+    state: str
+    distance_m: float
+
+    @property
+    def is_stop(self) -> bool:
+        """Red, red-yellow or yellow: a driver stops if it can."""
+        return self.state in "rRuyY"
+
+
+@dataclass(frozen=True)
+class VehicleAhead:
+    """The vehicle in front on the same route lanes: bumper-to-bumper gap and its speed."""
+
+    vehicle_id: str
+    gap_m: float
+    speed_mps: float
+
+
+class SumoBackend:
+    """One running SUMO simulation (libsumo allows only one per process)."""
+
+    def __init__(self, options: SumoOptions):
+        self.options = options
+        self._running = False
+        self._geometry: dict[str, tuple[float, float]] = {}
+
+    def start(self) -> None:
+        try:
+            libsumo.start(self.options.command())
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"SUMO did not start: {exc}") from None
+        self._running = True
+
+    def close(self) -> None:
+        if self._running:
+            self._running = False
+            with contextlib.suppress(libsumo.TraCIException):
+                libsumo.close()
+
+    def __enter__(self) -> SumoBackend:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def time_s(self) -> float:
+        return float(libsumo.simulation.getTime())
+
+    def step(self) -> None:
+        try:
+            libsumo.simulationStep()
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
+
+    def snapshot(self) -> WorldSnapshot:
+        """Read the footprint and speed of every vehicle (plain getters: fastest in libsumo)."""
+        veh = libsumo.vehicle
+        ids = tuple(veh.getIDList())
+        n = len(ids)
+        pos = np.empty((n, 2))
+        angle = np.empty(n)
+        speed = np.empty(n)
+        dims = np.empty((n, 2))
+        for i, vid in enumerate(ids):
+            pos[i] = veh.getPosition(vid)
+            angle[i] = veh.getAngle(vid)
+            speed[i] = veh.getSpeed(vid)
+            geom = self._geometry.get(vid)
+            if geom is None:
+                geom = self._geometry[vid] = (veh.getLength(vid), veh.getWidth(vid))
+            dims[i] = geom
+        lanes = tuple(veh.getLaneID(vid) for vid in ids)
+        return WorldSnapshot(
+            time_s=self.time_s,
+            ids=ids,
+            front_x_m=pos[:, 0],
+            front_y_m=pos[:, 1],
+            yaw_rad=np.radians(90.0 - angle),
+            length_m=dims[:, 0],
+            width_m=dims[:, 1],
+            speed_mps=speed,
+            lane_ids=lanes,
+            index={vid: i for i, vid in enumerate(ids)},
+        )
+
+    def add_vehicle(
+        self,
+        vehicle_id: str,
+        edges: Sequence[str],
+        type_id: str,
+        depart_lane: int,
+        depart_pos_m: float,
+        depart_speed_mps: float = 0.0,
+    ) -> None:
+        """Ask SUMO to insert a platoon vehicle now; it appears once there is room."""
+        route_id = f"route_{vehicle_id}"
+        try:
+            libsumo.route.add(route_id, list(edges))
+            libsumo.vehicle.add(
+                vehicle_id,
+                route_id,
+                typeID=type_id,
+                depart="now",
+                departLane=str(depart_lane),
+                departPos=repr(depart_pos_m),
+                departSpeed=repr(depart_speed_mps),
+            )
+            # We drive it: SUMO must neither brake it by its own rules nor change its lane.
+            libsumo.vehicle.setSpeedMode(vehicle_id, 0)
+            libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"cannot insert vehicle '{vehicle_id}': {exc}") from None
+
+    def add_vehicle_type(
+        self,
+        type_id: str,
+        length_m: float,
+        width_m: float,
+        min_gap_m: float,
+        max_speed_mps: float,
+        accel_mps2: float,
+        decel_mps2: float,
+        vclass: str,
+    ) -> None:
+        """A SUMO type for platoon vehicles, so SUMO's drivers see their true size."""
+        vt = libsumo.vehicletype
+        try:
+            vt.copy("DEFAULT_VEHTYPE", type_id)
+            vt.setVehicleClass(type_id, vclass)
+            vt.setLength(type_id, length_m)
+            vt.setWidth(type_id, width_m)
+            vt.setMinGap(type_id, min_gap_m)
+            vt.setMaxSpeed(type_id, max_speed_mps)
+            vt.setAccel(type_id, accel_mps2)
+            vt.setDecel(type_id, decel_mps2)
+            vt.setEmergencyDecel(type_id, max(decel_mps2, vt.getEmergencyDecel(type_id)))
+            vt.setColor(type_id, (30, 120, 255, 255))
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"cannot create vehicle type '{type_id}': {exc}") from None
+
+    def departed_ids(self) -> tuple[str, ...]:
+        return tuple(libsumo.simulation.getDepartedIDList())
+
+    def arrived_ids(self) -> tuple[str, ...]:
+        return tuple(libsumo.simulation.getArrivedIDList())
+
+    def pending_ids(self) -> tuple[str, ...]:
+        return tuple(libsumo.simulation.getPendingVehicles())
+
+    def forget(self, vehicle_ids: Sequence[str]) -> None:
+        for vid in vehicle_ids:
+            self._geometry.pop(vid, None)
+
+    def move(
+        self,
+        vehicle_ids: Sequence[str],
+        front_x_m: NDArray[np.float64],
+        front_y_m: NDArray[np.float64],
+        yaw_rad: NDArray[np.float64],
+        speed_mps: NDArray[np.float64],
+    ) -> None:
+        """Place platoon vehicles at the next step (front bumper, SUMO's angle convention)."""
+        angles = (90.0 - np.degrees(yaw_rad)) % 360.0
+        veh = libsumo.vehicle
+        for i, vid in enumerate(vehicle_ids):
+            try:
+                veh.moveToXY(vid, "", -1, float(front_x_m[i]), float(front_y_m[i]),
+                             float(angles[i]), keepRoute=1)  # fmt: skip
+                veh.setPreviousSpeed(vid, float(speed_mps[i]))
+            except libsumo.TraCIException as exc:
+                raise SumoError(
+                    f"cannot move vehicle '{vid}' to ({front_x_m[i]:.2f}, {front_y_m[i]:.2f}) "
+                    f"at t={self.time_s:.2f} s: {exc}"
+                ) from None
+
+    def remove(self, vehicle_id: str) -> None:
+        """Take a platoon vehicle out at the end of its route, as an arrival (tripinfo)."""
+        try:
+            libsumo.vehicle.remove(vehicle_id, libsumo.constants.REMOVE_ARRIVED)
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
+
+    def next_signal(self, vehicle_id: str) -> SignalAhead | None:
+        tls = libsumo.vehicle.getNextTLS(vehicle_id)
+        if not tls:
+            return None
+        tls_id, link_index, distance, state = tls[0]
+        return SignalAhead(str(tls_id), int(link_index), str(state), float(distance))
+
+    def lane_position_m(self, vehicle_id: str) -> float:
+        return float(libsumo.vehicle.getLanePosition(vehicle_id))
+
+    def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
+        """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""
+        found = libsumo.vehicle.getLeader(vehicle_id, horizon_m)
+        if not found or not found[0]:
+            return None
+        other = str(found[0])
+        # getLeader's distance excludes the asking vehicle's minGap: add it back.
+        gap = float(found[1]) + libsumo.vehicle.getMinGap(vehicle_id)
+        return VehicleAhead(other, gap, float(libsumo.vehicle.getSpeed(other)))
+
+    def min_gap_m(self, vehicle_id: str) -> float:
+        return float(libsumo.vehicle.getMinGap(vehicle_id))
+
+    def teleport_count(self) -> int:
+        return int(libsumo.simulation.getStartingTeleportNumber())
+
+    def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
+        """Collisions SUMO itself detected this step: (collider, victim, type)."""
+        for c in libsumo.simulation.getCollisions():
+            yield c.collider, c.victim, c.type
+
+    def emergency_stopping_ids(self) -> tuple[str, ...]:
+        return tuple(libsumo.simulation.getEmergencyStoppingVehiclesIDList())
+
+    def min_expected_vehicles(self) -> int:
+        return int(libsumo.simulation.getMinExpectedNumber())
+
+
+def resolve_sumo_path(value: str) -> Path:
+    """`sumo:<path>` names a file shipped inside the eclipse-sumo package."""
+    if value.startswith("sumo:"):
+        return Path(sumo.SUMO_HOME) / value[len("sumo:") :]
+    return Path(value)

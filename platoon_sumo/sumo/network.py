@@ -1,0 +1,215 @@
+"""Offline knowledge of a SUMO network (read with sumolib, no simulation needed).
+
+Used to validate scenarios before a run (edges exist, routes connect), to route
+from/to edges, and to build each route's centre-line path including the internal
+junction lanes, with the lanes chosen so that the route needs the fewest lane changes.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sumolib
+
+from platoon_sumo.errors import did_you_mean
+from platoon_sumo.path import RoutePath
+
+
+class RouteError(ValueError):
+    """A route that cannot be driven; `index` is the offending position in the edge list."""
+
+    def __init__(self, message: str, index: int | None = None, hint: str | None = None):
+        super().__init__(message)
+        self.index = index
+        self.hint = hint
+
+
+@dataclass(frozen=True)
+class _Link:
+    """One connection between consecutive route edges, with its junction lanes."""
+
+    from_lane: int
+    to_lane: int
+    via_lane_ids: tuple[str, ...]
+
+
+class Network:
+    """A read-only view of a `.net.xml` file."""
+
+    def __init__(self, net_file: str | Path):
+        self.path = Path(net_file)
+        self._net: Any = sumolib.net.readNet(str(self.path), withInternal=True)
+        self._normal_edges = {
+            e.getID(): e for e in self._net.getEdges(withInternal=False) if e.getFunction() == ""
+        }
+
+    @property
+    def edge_ids(self) -> list[str]:
+        return sorted(self._normal_edges)
+
+    def has_edge(self, edge_id: str) -> bool:
+        return edge_id in self._normal_edges
+
+    def edge_suggestion(self, edge_id: str) -> str | None:
+        return did_you_mean(edge_id, self._normal_edges)
+
+    def edge_length_m(self, edge_id: str) -> float:
+        return float(self._normal_edges[edge_id].getLength())
+
+    def lane_count(self, edge_id: str) -> int:
+        return len(self._normal_edges[edge_id].getLanes())
+
+    def tls_ids(self) -> list[str]:
+        return sorted(t.getID() for t in self._net.getTrafficLights())
+
+    def check_edges(self, edges: Sequence[str]) -> None:
+        """Raise RouteError if an edge is unknown or two consecutive edges do not connect."""
+        if not edges:
+            raise RouteError("a route needs at least one edge")
+        for i, edge_id in enumerate(edges):
+            if edge_id not in self._normal_edges:
+                raise RouteError(
+                    f"unknown edge '{edge_id}'", index=i, hint=self.edge_suggestion(edge_id)
+                )
+        for i, (a, b) in enumerate(itertools.pairwise(edges)):
+            if not self._links(a, b):
+                successors = sorted(e.getID() for e in self._normal_edges[a].getOutgoing())
+                raise RouteError(
+                    f"edge '{a}' does not connect to '{b}' (successors of '{a}': "
+                    f"{', '.join(successors) or 'none'})",
+                    index=i + 1,
+                )
+
+    def shortest_route(
+        self, from_edge: str, to_edge: str, via_edges: Sequence[str] = (), vclass: str = "passenger"
+    ) -> list[str]:
+        """Fastest route through the waypoints (travel time at the speed limit)."""
+        waypoints = [from_edge, *via_edges, to_edge]
+        self.check_edges_exist(waypoints)
+        route: list[str] = [from_edge]
+        for a, b in itertools.pairwise(waypoints):
+            found = self._net.getFastestPath(
+                self._normal_edges[a], self._normal_edges[b], vClass=vclass
+            )[0]
+            if not found:
+                raise RouteError(f"no route from edge '{a}' to edge '{b}' for vClass {vclass}")
+            route.extend(e.getID() for e in found[1:])
+        return route
+
+    def check_edges_exist(self, edges: Sequence[str]) -> None:
+        for i, edge_id in enumerate(edges):
+            if edge_id not in self._normal_edges:
+                raise RouteError(
+                    f"unknown edge '{edge_id}'", index=i, hint=self.edge_suggestion(edge_id)
+                )
+
+    @functools.lru_cache(maxsize=4096)  # noqa: B019 - one Network per run, bounded cache
+    def _links(self, from_edge: str, to_edge: str) -> tuple[_Link, ...]:
+        edge = self._normal_edges[from_edge]
+        target = self._normal_edges.get(to_edge)
+        links = []
+        for conn in edge.getOutgoing().get(target, []):
+            vias: list[str] = []
+            via_id = conn.getViaLaneID()
+            while via_id:
+                vias.append(via_id)
+                nxt = [c.getViaLaneID() for c in self._net.getLane(via_id).getOutgoing()]
+                via_id = nxt[0] if nxt else ""
+            links.append(
+                _Link(conn.getFromLane().getIndex(), conn.getToLane().getIndex(), tuple(vias))
+            )
+        return tuple(links)
+
+    def route_path(
+        self, edges: Sequence[str], spacing_m: float, first_lane: int | None = None
+    ) -> RoutePath:
+        """Centre-line of `edges` from the start of the first to the end of the last edge.
+
+        Lanes are chosen by dynamic programming over the connections at each junction:
+        fewest lane changes first, then the rightmost lanes. A lane change within an edge
+        is a smooth lateral blend over the middle of that edge.
+        """
+        self.check_edges(edges)
+        links = self._choose_links(edges, first_lane)
+        pieces: list[np.ndarray] = []
+        lane_ids: list[str] = []
+        speeds: list[float] = []
+        widths: list[float] = []
+        entry_lane = first_lane if first_lane is not None else None
+        for i, edge_id in enumerate(edges):
+            edge = self._normal_edges[edge_id]
+            exit_lane = links[i].from_lane if i < len(links) else None
+            start = entry_lane if entry_lane is not None else exit_lane
+            start = start if start is not None else 0
+            end = exit_lane if exit_lane is not None else start
+            lane_a, lane_b = edge.getLane(start), edge.getLane(end)
+            pieces.append(_blend(np.asarray(lane_a.getShape()), np.asarray(lane_b.getShape())))
+            lane_ids.append(lane_a.getID())
+            speeds.append(min(lane_a.getSpeed(), lane_b.getSpeed()))
+            widths.append(min(lane_a.getWidth(), lane_b.getWidth()))
+            if i < len(links):
+                for via_id in links[i].via_lane_ids:
+                    via = self._net.getLane(via_id)
+                    pieces.append(np.asarray(via.getShape()))
+                    lane_ids.append(via_id)
+                    speeds.append(via.getSpeed())
+                    widths.append(via.getWidth())
+                entry_lane = links[i].to_lane
+        return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m)
+
+    def _choose_links(self, edges: Sequence[str], first_lane: int | None) -> list[_Link]:
+        """One connection per junction: fewest lane changes, then rightmost lanes."""
+        options = [self._links(a, b) for a, b in itertools.pairwise(edges)]
+        if not options:
+            return []
+        change_cost = 100  # one lane change outweighs any preference for the right lane
+
+        def start_cost(link: _Link) -> int:
+            shift = abs(link.from_lane - first_lane) if first_lane is not None else 0
+            return shift * change_cost + link.from_lane
+
+        cost = [start_cost(link) for link in options[0]]
+        back: list[list[int]] = []
+        for prev, here in itertools.pairwise(options):
+            new_cost, choice = [], []
+            for link in here:
+                steps = [cost[k] + abs(p.to_lane - link.from_lane) * change_cost
+                         for k, p in enumerate(prev)]  # fmt: skip
+                best = int(np.argmin(steps))
+                choice.append(best)
+                new_cost.append(steps[best] + link.from_lane)
+            cost = new_cost
+            back.append(choice)
+        k = int(np.argmin(cost))
+        chosen = [k]
+        for choice in reversed(back):
+            k = choice[k]
+            chosen.append(k)
+        chosen.reverse()
+        return [opts[k] for opts, k in zip(options, chosen, strict=True)]
+
+
+def _blend(shape_a: np.ndarray, shape_b: np.ndarray) -> np.ndarray:
+    """Polyline leaving along shape_a and arriving along shape_b (same edge, other lane)."""
+    if shape_a.shape == shape_b.shape and np.allclose(shape_a, shape_b):
+        return shape_a
+    n = 50
+    t = np.linspace(0.0, 1.0, n)
+    a = _resample(shape_a, t)
+    b = _resample(shape_b, t)
+    # Smoothstep between 25 % and 75 % of the edge: the change happens mid-block.
+    u = np.clip((t - 0.25) / 0.5, 0.0, 1.0)
+    w = u * u * (3 - 2 * u)
+    return a * (1 - w)[:, None] + b * w[:, None]
+
+
+def _resample(shape: np.ndarray, t: np.ndarray) -> np.ndarray:
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(shape, axis=0).T))])
+    target = t * s[-1]
+    return np.column_stack([np.interp(target, s, shape[:, 0]), np.interp(target, s, shape[:, 1])])

@@ -1,0 +1,287 @@
+"""Geometry kernels against independent oracles (shapely, brute force, closed forms)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from shapely.geometry import MultiPoint, Point, Polygon
+
+from platoon_sumo.geometry import (
+    centre_to_front_bumper,
+    footprints_from_front_bumper,
+    front_bumper_to_centre,
+    overlapping_pairs,
+    penetration_depths,
+    rectangle_corners,
+    rectangles_overlap,
+    sumo_angle_deg_to_yaw,
+    wrap_angle,
+    yaw_to_sumo_angle_deg,
+)
+
+SETTINGS = settings(deadline=None, max_examples=200)
+
+coord = st.floats(-6.0, 6.0, allow_nan=False)
+yaw = st.floats(-4.0 * math.pi, 4.0 * math.pi, allow_nan=False)
+size = st.floats(0.2, 6.0, allow_nan=False)
+rectangle = st.tuples(coord, coord, yaw, size, size)
+
+
+def polygon(rect: tuple[float, ...]) -> Polygon:
+    return Polygon(rectangle_corners(np.array(rect))[0])
+
+
+# ---------------------------------------------------------------- angles
+
+
+def test_wrap_angle_known_values_and_half_open_interval() -> None:
+    assert wrap_angle(0.0) == 0.0
+    assert wrap_angle(math.pi) == pytest.approx(-math.pi)
+    assert wrap_angle(-math.pi) == pytest.approx(-math.pi)
+    assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
+    assert wrap_angle(-1e-300) == -1e-300
+    assert isinstance(wrap_angle(1.0), float)
+    values = wrap_angle(np.linspace(-50, 50, 10_001))
+    assert values.shape == (10_001,)
+    assert np.all(values >= -math.pi) and np.all(values < math.pi)
+    # Tiny negative offsets from -pi used to round up to +pi.
+    assert wrap_angle(np.nextafter(-math.pi, -4.0)) < math.pi
+
+
+@given(st.floats(-1e4, 1e4, allow_nan=False))
+@SETTINGS
+def test_wrap_angle_preserves_direction(a: float) -> None:
+    w = wrap_angle(a)
+    assert -math.pi <= w < math.pi
+    assert math.cos(w) == pytest.approx(math.cos(a), abs=1e-9)
+    assert math.sin(w) == pytest.approx(math.sin(a), abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("yaw_rad", "sumo_deg"),
+    [
+        (0.0, 90.0),  # east
+        (math.pi / 2, 0.0),  # north
+        (-math.pi, 270.0),  # west
+        (-math.pi / 2, 180.0),  # south
+        (math.pi / 4, 45.0),  # north-east
+    ],
+)
+def test_sumo_angle_known_values(yaw_rad: float, sumo_deg: float) -> None:
+    assert yaw_to_sumo_angle_deg(yaw_rad) == pytest.approx(sumo_deg, abs=1e-12)
+    assert sumo_angle_deg_to_yaw(sumo_deg) == pytest.approx(yaw_rad, abs=1e-12)
+
+
+@given(yaw)
+@SETTINGS
+def test_sumo_angle_round_trip(y: float) -> None:
+    deg = yaw_to_sumo_angle_deg(y)
+    assert 0.0 <= deg < 360.0
+    # Compare as directions: -pi and pi (just below) are the same heading.
+    assert abs(wrap_angle(sumo_angle_deg_to_yaw(deg) - y)) < 1e-9
+
+
+def test_sumo_angle_vectorised() -> None:
+    yaws = np.array([0.0, math.pi / 2, -math.pi / 2])
+    np.testing.assert_allclose(yaw_to_sumo_angle_deg(yaws), [90.0, 0.0, 180.0], atol=1e-12)
+    np.testing.assert_allclose(sumo_angle_deg_to_yaw([90.0, 0.0, 180.0]), yaws, atol=1e-12)
+
+
+# ---------------------------------------------------------------- footprints
+
+
+def test_front_bumper_centre_round_trip_broadcasts() -> None:
+    x, y, heading = np.array([0.0, 10.0]), np.array([0.0, -5.0]), np.array([0.0, math.pi / 2])
+    cx, cy = front_bumper_to_centre(x, y, heading, 4.0)
+    np.testing.assert_allclose(cx, [-2.0, 10.0], atol=1e-12)
+    np.testing.assert_allclose(cy, [0.0, -7.0], atol=1e-12)
+    bx, by = centre_to_front_bumper(cx, cy, heading, 4.0)
+    np.testing.assert_allclose(bx, x, atol=1e-12)
+    np.testing.assert_allclose(by, y, atol=1e-12)
+
+
+def test_footprints_from_front_bumper() -> None:
+    rects = footprints_from_front_bumper([5.0, 0.0], [0.0, 3.0], [0.0, math.pi], 4.0, [1.8, 2.0])
+    assert rects.shape == (2, 5) and rects.dtype == np.float64
+    np.testing.assert_allclose(rects[0], [3.0, 0.0, 0.0, 4.0, 1.8], atol=1e-12)
+    np.testing.assert_allclose(rects[1], [2.0, 3.0, math.pi, 4.0, 2.0], atol=1e-12)
+    assert footprints_from_front_bumper(1.0, 2.0, 0.0, 4.0, 2.0).shape == (1, 5)
+
+
+def test_rectangle_corners_axis_aligned_ccw() -> None:
+    corners = rectangle_corners(np.array([[1.0, 2.0, 0.0, 4.0, 2.0]]))
+    np.testing.assert_allclose(corners[0], [[3, 1], [3, 3], [-1, 3], [-1, 1]], atol=1e-12)
+
+
+def test_rectangle_corners_rotated_quarter_turn() -> None:
+    corners = rectangle_corners(np.array([0.0, 0.0, math.pi / 2, 4.0, 2.0]))
+    # Length now along +y: front-right corner is (+1, +2).
+    np.testing.assert_allclose(corners[0], [[1, 2], [-1, 2], [-1, -2], [1, -2]], atol=1e-12)
+
+
+@given(rectangle)
+@SETTINGS
+def test_rectangle_corners_match_shape(rect: tuple[float, ...]) -> None:
+    poly = polygon(rect)
+    assert poly.exterior.is_ccw
+    assert poly.area == pytest.approx(rect[3] * rect[4], rel=1e-9)
+    assert poly.centroid.x == pytest.approx(rect[0], abs=1e-9)
+    assert poly.centroid.y == pytest.approx(rect[1], abs=1e-9)
+
+
+def test_bad_rectangle_shape_is_rejected() -> None:
+    with pytest.raises(ValueError, match=r"\(N, 5\)"):
+        rectangle_corners(np.zeros((3, 4)))
+
+
+# ---------------------------------------------------------------- overlap
+
+
+@given(rectangle, rectangle)
+@SETTINGS
+def test_rectangles_overlap_matches_shapely(a: tuple[float, ...], b: tuple[float, ...]) -> None:
+    pa, pb = polygon(a), polygon(b)
+    area = pa.intersection(pb).area
+    # Skip grazing pairs (tiny area, or touching at distance ~0): the oracle is ambiguous there.
+    assume(area > 1e-9 or pa.distance(pb) > 1e-9)
+    assert rectangles_overlap(np.array([a]), np.array([b]))[0] == (area > 1e-9)
+    assert rectangles_overlap(np.array([b]), np.array([a]))[0] == (area > 1e-9)
+
+
+@given(rectangle, rectangle, st.floats(0.0, 1.5, allow_nan=False))
+@SETTINGS
+def test_tolerance_is_penetration_depth(
+    a: tuple[float, ...], b: tuple[float, ...], tolerance_m: float
+) -> None:
+    """Oracle: depth = distance from the origin to the boundary of the Minkowski difference."""
+    ca, cb = rectangle_corners(np.array([a, b]))
+    difference = MultiPoint((ca[:, None, :] - cb[None, :, :]).reshape(-1, 2)).convex_hull
+    origin = Point(0.0, 0.0)
+    depth = difference.exterior.distance(origin) if difference.contains(origin) else 0.0
+    assume(abs(depth - tolerance_m) > 1e-9)
+    got = rectangles_overlap(np.array([a]), np.array([b]), tolerance_m=tolerance_m)[0]
+    assert got == (depth > tolerance_m)
+    if depth > 1e-9:
+        assert penetration_depths(np.array(a), np.array(b))[0] == pytest.approx(depth, abs=1e-9)
+
+
+def test_touching_is_not_a_collision() -> None:
+    a = np.array([[0.0, 0.0, 0.0, 2.0, 2.0]])
+    b = np.array([[2.0, 0.0, 0.0, 2.0, 2.0]])  # shares an edge
+    c = np.array([[2.0, 2.0, 0.0, 2.0, 2.0]])  # shares a corner
+    assert not rectangles_overlap(a, b)[0]
+    assert not rectangles_overlap(a, c)[0]
+    nudged = b.copy()
+    nudged[0, 0] -= 0.1  # 10 cm of penetration
+    assert rectangles_overlap(a, nudged)[0]
+    assert rectangles_overlap(a, nudged, tolerance_m=0.05)[0]
+    assert not rectangles_overlap(a, nudged, tolerance_m=0.2)[0]
+
+
+def test_rectangles_overlap_is_vectorised_and_broadcasts() -> None:
+    a = np.array([[0.0, 0.0, 0.0, 4.0, 2.0]])
+    b = np.array([[3.0, 0.0, 0.3, 4.0, 2.0], [10.0, 0.0, 0.0, 4.0, 2.0], [0.0, 1.5, 1.0, 4, 2]])
+    np.testing.assert_array_equal(rectangles_overlap(a, b), [True, False, True])
+    with pytest.raises(ValueError, match="tolerance_m"):
+        rectangles_overlap(a, b, tolerance_m=-1.0)
+
+
+# ---------------------------------------------------------------- overlapping pairs
+
+
+def brute_force_pairs(rects: np.ndarray, subjects: np.ndarray, tol: float) -> np.ndarray:
+    """Every subject against every other rectangle, no pruning."""
+    n = len(rects)
+    s = np.repeat(np.flatnonzero(subjects), n)
+    o = np.tile(np.arange(n), int(subjects.sum()))
+    s, o = s[s != o], o[s != o]
+    pairs = np.unique(np.column_stack([np.minimum(s, o), np.maximum(s, o)]), axis=0)
+    pairs = pairs.reshape(-1, 2).astype(np.int64)
+    return pairs[rectangles_overlap(rects[pairs[:, 0]], rects[pairs[:, 1]], tol)]
+
+
+@given(
+    st.lists(rectangle, min_size=0, max_size=40),
+    st.data(),
+    st.sampled_from([0.0, 0.3]),
+    st.floats(0.3, 3.0),
+)
+@SETTINGS
+def test_overlapping_pairs_matches_brute_force(
+    rects_list: list[tuple[float, ...]], data: st.DataObject, tol: float, spread: float
+) -> None:
+    rects = np.array(rects_list, dtype=np.float64).reshape(-1, 5)
+    rects[:, :2] *= spread  # from crowded to sparse
+    mask = np.array(
+        data.draw(st.lists(st.booleans(), min_size=len(rects), max_size=len(rects))), dtype=bool
+    )
+    expected = brute_force_pairs(rects, mask, tol)
+    got = overlapping_pairs(rects, mask, tol)
+    assert got.dtype == np.int64 and got.shape[1] == 2
+    np.testing.assert_array_equal(got, expected)
+    # Index arrays (unsorted, with duplicates) mean the same as masks.
+    idx = np.flatnonzero(mask)[::-1]
+    np.testing.assert_array_equal(overlapping_pairs(rects, np.concatenate([idx, idx]), tol), got)
+
+
+def test_overlapping_pairs_sorted_and_subject_rules() -> None:
+    rects = np.array(
+        [
+            [0.0, 0.0, 0.0, 4.0, 2.0],  # 0 overlaps 1
+            [3.0, 0.0, 0.0, 4.0, 2.0],  # 1 overlaps 0 and 2
+            [6.0, 0.5, 0.0, 4.0, 2.0],  # 2
+            [50.0, 50.0, 0.0, 4.0, 2.0],  # 3 alone
+        ]
+    )
+    np.testing.assert_array_equal(overlapping_pairs(rects, [1]), [[0, 1], [1, 2]])
+    np.testing.assert_array_equal(overlapping_pairs(rects, [0]), [[0, 1]])
+    np.testing.assert_array_equal(overlapping_pairs(rects, [3]), np.empty((0, 2)))
+    np.testing.assert_array_equal(
+        overlapping_pairs(rects, np.ones(4, dtype=bool)), [[0, 1], [1, 2]]
+    )
+    assert overlapping_pairs(rects, np.zeros(4, dtype=bool)).shape == (0, 2)
+    assert overlapping_pairs(np.empty((0, 5)), []).shape == (0, 2)
+
+
+def test_overlapping_pairs_rejects_bad_subjects() -> None:
+    rects = np.zeros((3, 5))
+    with pytest.raises(ValueError, match="subject"):
+        overlapping_pairs(rects, [3])
+    with pytest.raises(ValueError, match="subject"):
+        overlapping_pairs(rects, np.ones(2, dtype=bool))
+
+
+def test_overlapping_pairs_far_coordinates() -> None:
+    """UTM-sized coordinates and one long truck: the grid must stay exact."""
+    base = np.array([[5.0e5, 4.0e6, 0.0, 4.0, 2.0], [5.0e5 + 3.0, 4.0e6, 0.2, 18.0, 2.5]])
+    rects = np.vstack([base, [[5.0e5 + 1e4, 4.0e6, 0.0, 4.0, 2.0]]])
+    np.testing.assert_array_equal(overlapping_pairs(rects, [0]), [[0, 1]])
+
+
+def test_overlapping_pairs_city_scale_is_fast_and_exact() -> None:
+    """3,000 vehicles on a straight north-south road (worst case for an x sweep)."""
+    rng = np.random.default_rng(7)
+    n = 3_000
+    rects = np.column_stack(
+        [
+            rng.normal(0.0, 4.0, n),
+            rng.uniform(0.0, 9_000.0, n),
+            rng.normal(math.pi / 2, 0.1, n),
+            rng.uniform(3.5, 5.0, n),
+            rng.uniform(1.6, 2.0, n),
+        ]
+    )
+    subjects = rng.choice(n, 100, replace=False)
+    mask = np.zeros(n, dtype=bool)
+    mask[subjects] = True
+    start = time.perf_counter()
+    got = overlapping_pairs(rects, subjects)
+    elapsed_s = time.perf_counter() - start
+    np.testing.assert_array_equal(got, brute_force_pairs(rects, mask, 0.0))
+    assert len(got) > 0
+    assert elapsed_s < 0.5

@@ -1,0 +1,276 @@
+"""Benchmark of the laser scanner kernel; prints a markdown table and writes docs/performance.md.
+
+(a) one 720-ray scan with 20 vehicles in view: our kernel against a naive per-ray
+    shapely implementation;
+(b) 500 equipped vehicles with UTM-30LX scans (1081 rays) among 2,500 SUMO vehicles on
+    a 3 km x 3 km grid city: ``scan_many`` against one bare ``libsumo.simulationStep()``
+    in the same process.
+
+Run from the repository root:  python tools/bench_laser.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+from platoon_sumo.sensors import LaserConfig, cast_rays, scan_many
+from platoon_sumo.sensors.raycast import _rect_corners
+
+REPO = Path(__file__).resolve().parents[1]
+SECTION = "## Laser scanner"
+
+
+def median_time_s(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def naive_shapely_scan(
+    origin: np.ndarray, heading: float, config: LaserConfig, rects: np.ndarray
+) -> np.ndarray:
+    """The obvious implementation: one shapely LineString per ray against every outline."""
+    cx, cy = _rect_corners(rects)
+    outlines = [Polygon(np.column_stack((cx[i], cy[i]))).exterior for i in range(len(rects))]
+    sensor = Point(origin)
+    out = np.full(config.samples, np.inf)
+    for i, a in enumerate(config.angles_rad):
+        end = (
+            origin[0] + config.range_max_m * math.cos(heading + a),
+            origin[1] + config.range_max_m * math.sin(heading + a),
+        )
+        ray = LineString([tuple(origin), end])
+        for outline in outlines:
+            hit = ray.intersection(outline)
+            if not hit.is_empty:
+                out[i] = min(out[i], sensor.distance(hit))
+    out[out < config.range_min_m] = -np.inf
+    return out
+
+
+def bench_single_scan(rng: np.random.Generator) -> dict[str, float]:
+    config = LaserConfig(-math.pi / 2, math.pi / 2, 720, 0.1, 30.0)
+    origin, heading = np.array([0.0, 0.0]), 0.0
+    # 20 car-sized boxes spread over the half-plane ahead, in view and within range
+    dist = rng.uniform(4.0, 28.0, 20)
+    bearing = rng.uniform(-1.4, 1.4, 20)
+    rects = np.column_stack(
+        (
+            dist * np.cos(bearing),
+            dist * np.sin(bearing),
+            rng.uniform(-math.pi, math.pi, 20),
+            np.full(20, 4.5),
+            np.full(20, 1.8),
+        )
+    )
+    ours = cast_rays(origin, heading, config, rects)
+    naive = naive_shapely_scan(origin, heading, config, rects)
+    ok = np.isfinite(ours) & np.isfinite(naive)
+    assert np.array_equal(np.isfinite(ours), np.isfinite(naive))
+    assert np.max(np.abs(ours[ok] - naive[ok])) < 1e-9
+    t_ours = median_time_s(lambda: cast_rays(origin, heading, config, rects), 200)
+    t_naive = median_time_s(lambda: naive_shapely_scan(origin, heading, config, rects), 3)
+    return {
+        "t_ours_s": t_ours,
+        "t_naive_s": t_naive,
+        "rays": config.samples,
+        "hit_fraction": float(np.isfinite(ours).mean()),
+    }
+
+
+def build_city(workdir: str) -> str:
+    import sumo
+
+    net = os.path.join(workdir, "grid.net.xml")
+    subprocess.run(
+        [
+            os.path.join(sumo.SUMO_HOME, "bin", "netgenerate"),
+            "--grid",
+            "--grid.number=31",
+            "--grid.length=100",
+            "--default.lanenumber=2",
+            "--default-junction-type=traffic_light",
+            "--no-turnarounds=true",
+            f"--output-file={net}",
+        ],
+        check=True,
+        capture_output=True,
+    )
+    return net
+
+
+def sumo_scene(net: str, n_vehicles: int, rng: np.random.Generator) -> dict[str, object]:
+    import libsumo
+    import sumo
+
+    libsumo.start(
+        [
+            os.path.join(sumo.SUMO_HOME, "bin", "sumo"),
+            "-n",
+            net,
+            "--no-step-log",
+            "--no-warnings",
+            "--time-to-teleport=-1",
+            "--seed=1",
+        ]
+    )
+    try:
+        edges = [e for e in libsumo.edge.getIDList() if not e.startswith(":")]
+        added = 0
+        while added < n_vehicles:
+            a, b = rng.choice(len(edges), 2, replace=False)
+            route = libsumo.simulation.findRoute(edges[a], edges[b]).edges
+            if len(route) < 15:  # long routes so nobody arrives while we measure
+                continue
+            rid = f"r{added}"
+            libsumo.route.add(rid, list(route))
+            libsumo.vehicle.add(
+                f"v{added}", rid, depart="now", departPos="random_free", departLane="free"
+            )
+            added += 1
+        for _ in range(600):
+            libsumo.simulationStep()
+            if libsumo.vehicle.getIDCount() >= n_vehicles:
+                break
+        for _ in range(20):  # let queues form at the lights
+            libsumo.simulationStep()
+        running = libsumo.vehicle.getIDCount()
+        t_step = median_time_s(libsumo.simulationStep, 30)
+        ids = libsumo.vehicle.getIDList()
+        front = np.array([libsumo.vehicle.getPosition(v) for v in ids])
+        yaw = np.radians(90.0 - np.array([libsumo.vehicle.getAngle(v) for v in ids]))
+        length = np.array([libsumo.vehicle.getLength(v) for v in ids])
+        width = np.array([libsumo.vehicle.getWidth(v) for v in ids])
+    finally:
+        libsumo.close()
+    centre = front - 0.5 * length[:, None] * np.column_stack((np.cos(yaw), np.sin(yaw)))
+    rects = np.column_stack((centre, yaw, length, width))
+    return {"rects": rects, "front": front, "yaw": yaw, "running": running, "t_step_s": t_step}
+
+
+def bench_city(rng: np.random.Generator) -> dict[str, float]:
+    config = LaserConfig.preset("utm30lx")
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = sumo_scene(build_city(tmp), 2500, rng)
+    rects = np.asarray(scene["rects"])
+    front, yaw = np.asarray(scene["front"]), np.asarray(scene["yaw"])
+    equipped = rng.choice(len(rects), 500, replace=False)
+    origins, headings = front[equipped], yaw[equipped]
+    ranges = scan_many(origins, headings, config, rects, exclude=equipped)
+    for k in rng.choice(500, 5, replace=False):  # spot-check against the single-sensor kernel
+        others = np.delete(rects, equipped[k], axis=0)
+        assert np.array_equal(
+            ranges[k], cast_rays(origins[k], headings[k], config, others), equal_nan=True
+        )
+    t_scan = median_time_s(
+        lambda: scan_many(origins, headings, config, rects, exclude=equipped), 15
+    )
+    near = [
+        int(np.sum(np.hypot(*(rects[:, :2] - o).T) <= config.range_max_m + 3.0)) - 1
+        for o in origins
+    ]
+    return {
+        "t_scan_s": t_scan,
+        "t_step_s": float(scene["t_step_s"]),  # type: ignore[arg-type]
+        "vehicles": float(scene["running"]),  # type: ignore[arg-type]
+        "rays": 500.0 * config.samples,
+        "hit_fraction": float(np.isfinite(ranges).mean()),
+        "too_close_fraction": float(np.isneginf(ranges).mean()),
+        "near_median": float(np.median(near)),
+        "near_max": float(np.max(near)),
+    }
+
+
+def render(a: dict[str, float], b: dict[str, float], command: str) -> str:
+    speedup = a["t_naive_s"] / a["t_ours_s"]
+    rows = [
+        "| Case | Measure | Value |",
+        "|---|---|---|",
+        f"| (a) 720 rays, 20 vehicles in view | `cast_rays` per scan | "
+        f"{a['t_ours_s'] * 1e3:.3f} ms ({1 / a['t_ours_s']:,.0f} scans/s, "
+        f"{a['rays'] / a['t_ours_s'] / 1e6:.1f} M rays/s) |",
+        f"| | naive per-ray shapely per scan | {a['t_naive_s'] * 1e3:.0f} ms "
+        f"({1 / a['t_naive_s']:.1f} scans/s, {a['rays'] / a['t_naive_s'] / 1e3:.1f} k rays/s) |",
+        f"| | speed-up | **{speedup:,.0f}x** (target >= 100x) |",
+        f"| | rays with a hit | {a['hit_fraction']:.0%} |",
+        f"| (b) 500 x 1081-ray scans among {b['vehicles']:.0f} SUMO vehicles, "
+        f"3 km x 3 km grid | `scan_many` | {b['t_scan_s'] * 1e3:.1f} ms "
+        f"({b['rays'] / b['t_scan_s'] / 1e6:.0f} M rays/s) |",
+        f"| | bare `libsumo.simulationStep()` | {b['t_step_s'] * 1e3:.1f} ms |",
+        f"| | scan / step | **{b['t_scan_s'] / b['t_step_s']:.2f}** (target <= 1) |",
+        f"| | vehicles within 33 m of a sensor | median {b['near_median']:.0f}, "
+        f"max {b['near_max']:.0f} |",
+        f"| | readings: hit / too close | {b['hit_fraction']:.1%} / "
+        f"{b['too_close_fraction']:.2%} |",
+    ]
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
+    except (OSError, StopIteration):
+        pass
+    meta = (
+        f"Command: `{command}`  \n"
+        f"Machine: {cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, "
+        f"numpy {np.__version__}, shapely {shapely.__version__}  \n"
+        f"Date: {datetime.date.today().isoformat()}; medians of repeated runs."
+    )
+    return meta + "\n\n" + "\n".join(rows) + "\n"
+
+
+def write_section(path: Path, body: str) -> None:
+    """Replace (or append) the "Laser scanner" section, leaving other sections alone."""
+    text = path.read_text() if path.exists() else "# Performance\n"
+    start = text.find(SECTION)
+    if start >= 0:
+        nxt = text.find("\n## ", start + len(SECTION))
+        text = text[:start] + (text[nxt + 1 :] if nxt >= 0 else "")
+    marker = "<!-- bench_laser table -->"
+    section_text = _SECTION_TEMPLATE.replace(marker, body)
+    path.write_text(text.rstrip("\n") + "\n\n" + section_text)
+
+
+_SECTION_TEMPLATE = """## Laser scanner
+
+Measured by `tools/bench_laser.py` (the numbers below are rewritten by each run).
+
+<!-- bench_laser table -->
+See the module docstring of `platoon_sumo/sensors/raycast.py` for the algorithm.
+"""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "performance.md")
+    parser.add_argument("--no-write", action="store_true", help="print the table only")
+    args = parser.parse_args(argv)
+    rng = np.random.default_rng(2024)
+    a = bench_single_scan(rng)
+    b = bench_city(rng)
+    body = render(a, b, "python tools/bench_laser.py")
+    print(body)
+    if not args.no_write:
+        write_section(args.out, body)
+        print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
