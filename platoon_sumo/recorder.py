@@ -17,6 +17,7 @@ Columns of trajectories.csv (one row per platoon vehicle per step, after the ste
 | lane_id | | lane SUMO maps the vehicle to |
 | signal_tls, signal_state | | next traffic light on the route and its link state |
 | signal_distance_m | m | distance from the front bumper to that light's stop line |
+| ahead_id, ahead_gap_m | -, m | nearest vehicle ahead on the route lanes; bumper-to-bumper gap |
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ TRAJECTORY_COLUMNS = (
     "time_s", "vehicle_id", "platoon_id", "member_index", "role", "x_m", "y_m", "yaw_rad",
     "speed_mps", "accel_mps2", "cmd_speed_mps", "cmd_yaw_rate_radps", "route_s_m",
     "lateral_offset_m", "lane_width_m", "lane_id", "signal_tls", "signal_state",
-    "signal_distance_m",
+    "signal_distance_m", "ahead_id", "ahead_gap_m",
 )  # fmt: skip
 
 
@@ -55,7 +56,7 @@ class TrajectoryRecorder:
         for v in record.vehicles:
             fx, fy = v.front_bumper()
             i = world.index.get(v.id)
-            signal = v.signal
+            signal, ahead = v.signal, v.vehicle_ahead
             self._rows.append(
                 (
                     round(record.time_s, 6), v.id, v.plan.platoon_id, v.plan.index, v.plan.role,
@@ -67,6 +68,7 @@ class TrajectoryRecorder:
                     world.lane_ids[i] if i is not None else "",
                     signal.tls_id if signal else "", signal.state if signal else "",
                     signal.distance_m if signal else "",
+                    ahead.vehicle_id if ahead else "", ahead.gap_m if ahead else "",
                 )
             )  # fmt: skip
         if len(self._rows) >= self.chunk_rows:

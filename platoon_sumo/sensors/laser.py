@@ -202,11 +202,13 @@ class LaserScan:
     @property
     def angles(self) -> FloatArray:
         """Sensor-frame angle of each ray [rad]."""
-        return self.angle_min + np.arange(self.ranges.size) * self.angle_increment
+        i = np.arange(self.ranges.size, dtype=np.float64)
+        return self.angle_min + i * self.angle_increment
 
     def points_world(self) -> FloatArray:
         """Hit points (valid readings only) in world coordinates, shape (H, 2) [m]."""
         valid = np.isfinite(self.ranges)
         a = self.heading_rad + self.angles[valid]
         r = self.ranges[valid]
-        return np.column_stack((self.origin_x_m + r * np.cos(a), self.origin_y_m + r * np.sin(a)))
+        points = np.column_stack((self.origin_x_m + r * np.cos(a), self.origin_y_m + r * np.sin(a)))
+        return points.astype(np.float64, copy=False)

@@ -65,6 +65,10 @@ class Network:
     def lane_count(self, edge_id: str) -> int:
         return len(self._normal_edges[edge_id].getLanes())
 
+    def lane_shape(self, lane_id: str) -> np.ndarray:
+        """(k, 2) centre-line of a lane, internal junction lanes included."""
+        return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
+
     def tls_ids(self) -> list[str]:
         return sorted(t.getID() for t in self._net.getTrafficLights())
 

@@ -1,0 +1,121 @@
+"""Route following in closed loop with the bicycle model, on synthetic paths (no SUMO)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from platoon_sumo.control.base import Observation
+from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.path import RoutePath
+from platoon_sumo.sumo.backend import SignalAhead, VehicleAhead
+from platoon_sumo.vehicles import Bicycle, KinematicState, MotionLimits
+
+LIMITS = MotionLimits(
+    max_speed_mps=15.0,
+    max_accel_mps2=2.5,
+    max_decel_mps2=7.5,
+    max_yaw_rate_radps=1.0,
+    max_steer_rad=0.6,
+    wheelbase_m=2.7,
+)
+FRONT_OFFSET_M = 3.6  # rear axle to front bumper of a 4.5 m car
+DT = 0.1
+
+
+def l_shaped_path(turn_radius_m: float = 12.0) -> RoutePath:
+    """100 m east, a quarter circle to the left, 100 m north; speed limit 13.89 m/s."""
+    east = np.column_stack([np.linspace(0, 100, 201), np.zeros(201)])
+    t = np.linspace(-math.pi / 2, 0.0, 200)
+    arc = np.column_stack([100 + turn_radius_m * np.cos(t), turn_radius_m * (1 + np.sin(t))])
+    north = np.column_stack(
+        [np.full(201, 100 + turn_radius_m), np.linspace(turn_radius_m, 112, 201)]
+    )
+    return RoutePath.from_pieces([east, arc, north], ["e", "j", "n"], [13.89] * 3, [3.2] * 3, 0.25)
+
+
+def drive(path, steps, signal_at_s=None, signal_state="r", ahead=None, params=None):
+    """Closed loop: controller -> bicycle model; returns per-step (s_front, offset, v, kappa)."""
+    ctrl = RouteFollowing(params or RouteFollowingParams())
+    ctrl.reset()
+    state = KinematicState.of(-FRONT_OFFSET_M, 0.0, 0.0, 0.0)
+    model = Bicycle()
+    log = []
+    for k in range(steps):
+        x, y, yaw, v = (float(a[0]) for a in (state.x_m, state.y_m, state.yaw_rad, state.speed_mps))
+        fx, fy = x + FRONT_OFFSET_M * math.cos(yaw), y + FRONT_OFFSET_M * math.sin(yaw)
+        front = path.project(fx, fy)
+        signal = None
+        if signal_at_s is not None and front.s_m < signal_at_s:
+            signal = SignalAhead("tls", 0, signal_state, signal_at_s - front.s_m)
+        obs = Observation(
+            time_s=k * DT,
+            dt_s=DT,
+            vehicle_id="car",
+            role="leader",
+            x_m=x,
+            y_m=y,
+            yaw_rad=yaw,
+            speed_mps=v,
+            front_offset_m=FRONT_OFFSET_M,
+            length_m=4.5,
+            width_m=1.8,
+            limits=LIMITS,
+            path=path,
+            signal=signal,
+            vehicle_ahead=ahead(front.s_m, k * DT) if ahead else None,
+        )
+        cmd = ctrl.step(obs)
+        state = model.step(
+            state, np.array([cmd.speed_mps]), np.array([cmd.yaw_rate_radps]), LIMITS, DT
+        )
+        log.append((front.s_m, front.lateral_offset_m, float(state.speed_mps[0])))
+    return np.array(log)
+
+
+def test_follows_a_turn_within_the_lane_and_slows_for_it():
+    path = l_shaped_path()
+    log = drive(path, steps=400)
+    log = log[log[:, 0] < path.length_m - 1.0]  # the loop removes vehicles at the route's end
+    s, offset, v = log.T
+    assert s[-1] > 200, "drove through the turn"
+    assert np.abs(offset).max() < 0.8  # half a 3.2 m lane is 1.6 m
+    in_turn = (s > 105) & (s < 115)
+    # Speed in the turn respects the lateral acceleration bound a = v^2 / R (R = 12 m, 2 m/s^2).
+    assert v[in_turn].max() <= math.sqrt(2.0 * 12.0) + 0.3
+    assert v.max() == pytest.approx(13.89, abs=1e-6)  # and reaches the speed limit elsewhere
+
+
+def test_stops_before_a_red_stop_line_and_drives_on_green():
+    path = l_shaped_path()
+    red = drive(path, steps=600, signal_at_s=80.0, signal_state="r")
+    s, _, v = red.T
+    assert v[-1] == 0.0
+    assert 80.0 - 1.0 - 0.5 <= s[-1] <= 80.0  # stop_margin_m = 1 before the line
+    green = drive(path, steps=300, signal_at_s=80.0, signal_state="G")
+    assert green[-1, 0] > 100
+
+
+def test_brakes_behind_a_stopped_vehicle():
+    path = l_shaped_path()
+    obstacle_s = 60.0  # rear bumper of a stopped car on the route
+
+    def ahead(s_front, t):
+        return VehicleAhead("other", obstacle_s - s_front, 0.0)
+
+    s, _, v = drive(path, steps=500, ahead=ahead).T
+    assert v[-1] < 1e-6
+    gap = obstacle_s - s[-1]
+    assert 2.5 - 0.5 <= gap <= 2.5 + 1.0  # standstill_gap_m = 2.5
+    assert (obstacle_s - s > 0).all()
+
+
+def test_drives_through_yellow_when_too_close_to_stop_comfortably():
+    path = l_shaped_path()
+    # Reach speed first, then the light is 8 m ahead: stopping would need > 4 m/s^2.
+    ctrl_log = drive(path, steps=120)
+    s_now = ctrl_log[-1, 0]
+    log = drive(path, steps=160, signal_at_s=s_now + 8.0, signal_state="y")
+    assert log[-1, 0] > s_now + 8.0

@@ -1,0 +1,66 @@
+"""RoutePath: resampling, look-ups and projection against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from platoon_sumo.path import RoutePath
+
+
+def circle_path(radius_m: float, spacing_m: float = 0.05) -> RoutePath:
+    """Counter-clockwise circle around the origin starting at (R, 0), 3/4 of a turn."""
+    t = np.linspace(0.0, 1.5 * math.pi, 2000)
+    pts = np.column_stack([radius_m * np.cos(t), radius_m * np.sin(t)])
+    return RoutePath.from_pieces([pts], ["c_0"], [10.0], [3.2], spacing_m)
+
+
+def test_straight_pieces_join_into_one_path_with_lane_ownership():
+    a = np.array([[0.0, 0.0], [10.0, 0.0]])
+    b = np.array([[10.0, 0.0], [10.0, 5.0]])
+    path = RoutePath.from_pieces([a, b], ["a_0", ":j_0_0"], [13.9, 5.0], [3.2, 3.0], 0.5)
+    assert math.isclose(path.length_m, 15.0, abs_tol=1e-9)
+    assert path.point_at(12.0) == (10.0, 2.0)
+    assert path.lane_at(3.0) == "a_0" and path.lane_at(12.0) == ":j_0_0"
+    assert math.isclose(path.heading_at(4.0), 0.0) and math.isclose(
+        path.heading_at(13.0), math.pi / 2
+    )
+    i = int(12.0 / path.spacing_m)
+    assert path.speed_limit_mps[i] == 5.0 and path.lane_width_m[i] == 3.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    angle=st.floats(0.05, 1.45 * math.pi),
+    offset=st.floats(-1.5, 1.5),
+)
+def test_projection_on_a_circle_matches_polar_geometry(angle, offset):
+    radius = 20.0
+    path = circle_path(radius)
+    r = radius - offset  # left of a counter-clockwise circle is towards its centre
+    point = path.project(r * math.cos(angle), r * math.sin(angle))
+    # Chord error of the polyline is at most R (1 - cos(dtheta / 2)) ~ 6e-6 m here.
+    assert math.isclose(point.lateral_offset_m, offset, abs_tol=1e-4)
+    # Off the centre-line, the foot point on a chord shifts by up to spacing * |offset| / R.
+    assert math.isclose(point.s_m, radius * angle, abs_tol=0.05 * abs(offset) / radius + 1e-4)
+
+
+def test_projection_with_hint_does_not_jump_to_a_later_pass():
+    # An out-and-back route: both passes lie 0.4 m apart.
+    out = np.array([[0.0, 0.0], [50.0, 0.0]])
+    turn = np.array([[50.0, 0.0], [50.0, 0.4]])
+    back = np.array([[50.0, 0.4], [0.0, 0.4]])
+    path = RoutePath.from_pieces([out, turn, back], ["o", "t", "b"], [1, 1, 1], [3, 3, 3], 0.25)
+    near_return_lane = (10.0, 0.3)
+    assert path.project(*near_return_lane).s_m > 50.0  # globally nearest: the way back
+    assert path.project(*near_return_lane, s_hint_m=9.0, window_m=5.0).s_m < 15.0
+
+
+def test_curvature_of_a_circle_is_one_over_radius():
+    path = circle_path(25.0)
+    kappa = path.curvature_1pm(smoothing_m=1.0)
+    inner = kappa[50:-50]
+    assert np.allclose(inner, 1 / 25.0, rtol=5e-3)
