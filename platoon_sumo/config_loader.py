@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar, Union, get_args, get_origin, get_type_hints
 
 from platoon_sumo.errors import ScenarioError, did_you_mean
@@ -66,6 +66,8 @@ def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
         options = get_args(tp)
         if value is None and type(None) in options:
             return None
+        if type(value) in options:  # an exact match wins: `float | int` keeps ints as ints
+            return value
         errors: list[ScenarioError] = []
         for option in options:
             if option is type(None):
@@ -160,3 +162,13 @@ def require(condition: bool, key: str, message: str, hint: str | None = None) ->
     """Range check for `__post_init__`: raises FieldError naming the key."""
     if not condition:
         raise FieldError(key, message, hint)
+
+
+def require_choice(value: str, choices: Sequence[str], key: str) -> None:
+    """`value` must be one of `choices`; otherwise name them and suggest the closest."""
+    if value not in choices:
+        raise FieldError(
+            key,
+            f"unknown value '{value}' (expected one of: {', '.join(choices)})",
+            did_you_mean(value, choices),
+        )

@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 import platoon_sumo
+from platoon_sumo.config_loader import FieldError
 from platoon_sumo.cosim import CoSimulation, RunCounters, StepHook
+from platoon_sumo.errors import ScenarioError
 from platoon_sumo.recorder import TrajectoryRecorder
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
@@ -47,10 +49,11 @@ def load_plan(path: str | Path, end_s: float | None = None, seed: int | None = N
     if changes:
         try:
             new_sim = dataclasses.replace(sim, **changes)
-        except ValueError as exc:
-            from platoon_sumo.errors import ScenarioError
-
-            raise ScenarioError(str(path), "simulation", f"command-line override: {exc}") from None
+        except FieldError as exc:
+            option = {"end_s": "--end", "seed": "--seed"}.get(exc.key, exc.key)
+            raise ScenarioError(
+                str(path), f"simulation.{exc.key}", f"{option} {exc.message}", exc.hint
+            ) from None
         source = ScenarioSource(
             dataclasses.replace(source.scenario, simulation=new_sim), source.path, source.text
         )
@@ -96,6 +99,8 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         all_hooks.append(recorder)
     all_hooks.extend(hooks)
     walls = read_wall_segments(plan.additional_files)
+    if sc.network.kerbs:
+        walls = np.vstack([walls, plan.network.kerb_segments(sc.network.kerb_margin_m)])
     wall_start = time.perf_counter()
     backend = SumoBackend(options)
     backend.start()

@@ -9,6 +9,7 @@ inside the installed eclipse-sumo package (e.g. `sumo:tools/game/DRT/osm.net.xml
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import xml.etree.ElementTree as ET
@@ -19,13 +20,22 @@ from typing import Any
 
 import yaml
 
-from platoon_sumo.config_loader import load_dataclass, require
+from platoon_sumo.config_loader import load_dataclass, require, require_choice
 from platoon_sumo.control import CONTROLLERS, Controller
-from platoon_sumo.errors import ScenarioError
+from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
+
+VEHICLE_CLASSES = (
+    "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
+    "hov", "taxi", "bus", "coach", "delivery", "truck", "trailer", "motorcycle", "moped",
+    "bicycle", "evehicle", "tram", "rail_urban", "rail", "rail_electric", "rail_fast", "ship",
+    "container", "cable_car", "subway", "aircraft", "wheelchair", "scooter", "drone",
+    "custom1", "custom2",
+)  # fmt: skip
+LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
 
 CAR_FOLLOW_MODELS = (
     "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "IIDM", "ACC",
@@ -46,6 +56,8 @@ class SimulationConfig:
     """SUMO sublane resolution; without it pushed poses snap to lane centres."""
 
     def __post_init__(self) -> None:
+        require(math.isfinite(self.step_s), "step_s", "must be a finite number")
+        require(math.isfinite(self.end_s), "end_s", "must be a finite number")
         require(self.step_s > 0, "step_s", f"must be > 0 s, got {self.step_s}")
         require(self.step_s <= 1.0, "step_s", f"must be <= 1 s, got {self.step_s}")
         require(self.end_s > self.begin_s, "end_s", "must be after begin_s")
@@ -61,8 +73,14 @@ class NetworkConfig:
     """A .sumocfg: its net, route and additional files are used."""
     route_files: tuple[str, ...] = ()
     additional_files: tuple[str, ...] = ()
+    """Polygons of type `wall` or `building*` in these files are obstacles for lasers."""
+    kerbs: bool = False
+    """Make the boundary of the road area (lanes + junctions) a laser obstacle."""
+    kerb_margin_m: float = 0.2
+    """Distance of the kerb line outside the outermost lane edge."""
 
     def __post_init__(self) -> None:
+        require(self.kerb_margin_m >= 0, "kerb_margin_m", "must be >= 0")
         require(
             (self.net_file is None) != (self.sumocfg is None),
             "net_file",
@@ -97,12 +115,9 @@ class VehicleTypeConfig:
     """Further attributes written as-is onto the vType (e.g. `delta` for IDM)."""
 
     def __post_init__(self) -> None:
-        require(
-            self.car_follow_model in CAR_FOLLOW_MODELS,
-            "car_follow_model",
-            f"unknown car-following model '{self.car_follow_model}' "
-            f"(known: {', '.join(CAR_FOLLOW_MODELS)})",
-        )
+        require_choice(self.car_follow_model, CAR_FOLLOW_MODELS, "car_follow_model")
+        require_choice(self.lane_change_model, LANE_CHANGE_MODELS, "lane_change_model")
+        require_choice(self.vclass, VEHICLE_CLASSES, "vclass")
         for key in ("length_m", "width_m", "max_speed_mps", "accel_mps2", "decel_mps2", "tau_s"):
             require(getattr(self, key) > 0, key, "must be > 0")
         require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
@@ -159,6 +174,15 @@ class TrafficConfig:
     flows: tuple[FlowConfig, ...] = ()
     random_trips: RandomTripsConfig | None = None
 
+    def __post_init__(self) -> None:
+        ids = [t.id for t in self.vehicle_types]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        require(
+            not duplicates,
+            "vehicle_types",
+            f"duplicate vehicle type id(s): {', '.join(duplicates)}",
+        )
+
 
 @dataclass(frozen=True)
 class RouteConfig:
@@ -201,11 +225,8 @@ class VehicleConfig:
     vclass: str = "passenger"
 
     def __post_init__(self) -> None:
-        require(
-            self.model in VEHICLE_MODELS,
-            "model",
-            f"unknown vehicle model '{self.model}' (known: {', '.join(VEHICLE_MODELS.names())})",
-        )
+        require_choice(self.model, VEHICLE_MODELS.names(), "model")
+        require_choice(self.vclass, VEHICLE_CLASSES, "vclass")
         for key in ("length_m", "width_m", "wheelbase_m", "max_speed_mps", "max_accel_mps2",
                     "max_decel_mps2", "max_yaw_rate_radps"):  # fmt: skip
             require(getattr(self, key) > 0, key, "must be > 0")
@@ -252,11 +273,7 @@ class SensorConfig:
     overrides: Mapping[str, float | int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        require(
-            self.preset in LASER_PRESETS,
-            "preset",
-            f"unknown laser preset '{self.preset}' (known: {', '.join(sorted(LASER_PRESETS))})",
-        )
+        require_choice(self.preset, sorted(LASER_PRESETS), "preset")
 
 
 @dataclass(frozen=True)
@@ -348,7 +365,12 @@ def load_scenario(path: str | Path) -> ScenarioSource:
     shown = str(path)
     if not p.is_file():
         raise ScenarioError(shown, "", "scenario file not found", "check the path")
-    text = p.read_text(encoding="utf-8")
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            shown, "", f"not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -524,6 +546,11 @@ def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> P
     need = p.members * p.vehicle.length_m + (p.members - 1) * p.spacing_m
     edge_len = network.edge_length_m(first)
     depart_pos = p.depart_pos_m if p.depart_pos_m is not None else need + 0.1
+    if p.depart_pos_m is not None and not 0 < p.depart_pos_m <= edge_len:
+        raise ScenarioError(
+            file, f"{key}.depart_pos_m",
+            f"must be in (0, {edge_len:.1f}] m, the length of edge '{first}'",
+        )  # fmt: skip
     if depart_pos < need or depart_pos > edge_len:
         raise ScenarioError(
             file,
@@ -542,7 +569,13 @@ def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> P
             cls = CONTROLLERS.get(ctrl.type)
         except LookupError as exc:
             raise ScenarioError(file, f"{ctrl_key}.type", str(exc)) from None
-        if not isinstance(getattr(cls, "Params", None), type):
+        params_cls = getattr(cls, "Params", None)
+        if not (
+            isinstance(params_cls, type)
+            and dataclasses.is_dataclass(params_cls)
+            and callable(getattr(cls, "reset", None))
+            and callable(getattr(cls, "step", None))
+        ):
             raise ScenarioError(
                 file, f"{ctrl_key}.type",
                 f"'{ctrl.type}' is not a controller: "
@@ -553,6 +586,14 @@ def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> P
         members.append(MemberPlan(vid, p.id, k, role, cls, params, pos))
     laser = None
     if p.sensor is not None:
+        fields = [f.name for f in dataclasses.fields(LaserConfig)]
+        for name in p.sensor.overrides:
+            if name not in fields:
+                raise ScenarioError(
+                    file, f"{key}.sensor.overrides.{name}",
+                    f"unknown laser setting (allowed: {', '.join(fields)})",
+                    did_you_mean(name, fields),
+                )  # fmt: skip
         try:
             laser = LaserConfig.preset(p.sensor.preset, **dict(p.sensor.overrides))
         except (TypeError, ValueError) as exc:

@@ -95,6 +95,7 @@ def _random_trips(plan: RunPlan, directory: Path, type_id: str) -> Path:
         sys.executable, str(script),
         "-n", str(plan.net_file),
         "-o", str(out),
+        "-r", str(directory / "random.rou.xml"),  # trips are validated by routing them
         "--begin", repr(rt.begin_s),
         "--end", repr(rt.end_s if rt.end_s is not None else sim.end_s),
         "--period", repr(rt.period_s),
@@ -105,7 +106,7 @@ def _random_trips(plan: RunPlan, directory: Path, type_id: str) -> Path:
         "--trip-attributes", f'type="{type_id}" departLane="best" departSpeed="max"',
     ]  # fmt: skip
     env = {**os.environ, "SUMO_HOME": sumo_home()}
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+    done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False, cwd=directory)
     if done.returncode != 0 or not out.is_file():
         raise SumoError(f"randomTrips.py failed: {done.stderr.strip() or done.stdout.strip()}")
     return out

@@ -198,7 +198,48 @@ def bench_city(rng: np.random.Generator) -> dict[str, float]:
     }
 
 
-def render(a: dict[str, float], b: dict[str, float], command: str) -> str:
+def queued_scene(rng: np.random.Generator, n: int = 2500) -> np.ndarray:
+    """A worst case for the scanner: n cars queued bumper to bumper (7.5 m headway) on
+    the 4-lane roads of a 6 x 6 block grid (100 m blocks), junctions kept clear."""
+    lanes_m = np.array([-4.8, -1.6, 1.6, 4.8])
+    along = np.arange(6.0, 600.0, 7.5)
+    along = along[np.abs((along + 50.0) % 100.0 - 50.0) > 10.0]
+    horiz, road, lane, pos = (
+        g.ravel() for g in np.meshgrid([0, 1], np.arange(6) * 100.0, lanes_m, along)
+    )
+    pick = rng.choice(horiz.size, n, replace=False)
+    horiz, road, lane, pos = horiz[pick], road[pick], lane[pick], pos[pick]
+    x = np.where(horiz == 1, pos, road + lane)
+    y = np.where(horiz == 1, road + lane, pos)
+    forward = np.where(horiz == 1, 0.0, math.pi / 2) + np.where(lane > 0, math.pi, 0.0)
+    yaw = forward + rng.normal(0.0, 0.03, n)
+    return np.column_stack((x, y, yaw, rng.uniform(4.0, 5.0, n), rng.uniform(1.7, 2.0, n)))
+
+
+def bench_queued(rng: np.random.Generator) -> dict[str, float]:
+    config = LaserConfig.preset("utm30lx")
+    rects = queued_scene(rng)
+    equipped = rng.choice(len(rects), 500, replace=False)
+    yaw = rects[equipped, 2]
+    origins = rects[equipped, :2] + 0.5 * rects[equipped, 3:4] * np.column_stack(
+        (np.cos(yaw), np.sin(yaw))
+    )
+    ranges = scan_many(origins, yaw, config, rects, exclude=equipped)
+    t_scan = median_time_s(lambda: scan_many(origins, yaw, config, rects, exclude=equipped), 15)
+    near = [
+        int(np.sum(np.hypot(*(rects[:, :2] - o).T) <= config.range_max_m + 3.0)) - 1
+        for o in origins
+    ]
+    return {
+        "t_scan_s": t_scan,
+        "rays": 500.0 * config.samples,
+        "hit_fraction": float(np.isfinite(ranges).mean()),
+        "near_median": float(np.median(near)),
+        "near_max": float(np.max(near)),
+    }
+
+
+def render(a: dict[str, float], b: dict[str, float], c: dict[str, float], command: str) -> str:
     speedup = a["t_naive_s"] / a["t_ours_s"]
     rows = [
         "| Case | Measure | Value |",
@@ -219,6 +260,13 @@ def render(a: dict[str, float], b: dict[str, float], command: str) -> str:
         f"max {b['near_max']:.0f} |",
         f"| | readings: hit / too close | {b['hit_fraction']:.1%} / "
         f"{b['too_close_fraction']:.2%} |",
+        f"| (c) stress: same 500 scans, 2,500 cars queued bumper to bumper on a "
+        f"600 m x 600 m 4-lane grid | `scan_many` | {c['t_scan_s'] * 1e3:.1f} ms "
+        f"({c['rays'] / c['t_scan_s'] / 1e6:.0f} M rays/s) |",
+        f"| | scan / step of (b) | **{c['t_scan_s'] / b['t_step_s']:.2f}** |",
+        f"| | vehicles within 33 m of a sensor | median {c['near_median']:.0f}, "
+        f"max {c['near_max']:.0f} |",
+        f"| | readings with a hit | {c['hit_fraction']:.1%} |",
     ]
     cpu = platform.processor() or platform.machine()
     try:
@@ -249,10 +297,34 @@ def write_section(path: Path, body: str) -> None:
 
 _SECTION_TEMPLATE = """## Laser scanner
 
-Measured by `tools/bench_laser.py` (the numbers below are rewritten by each run).
+Measured by `tools/bench_laser.py`; this section is rewritten by each run of it.
 
 <!-- bench_laser table -->
-See the module docstring of `platoon_sumo/sensors/raycast.py` for the algorithm.
+How `platoon_sumo.sensors.scan_many` gets there with numpy alone (details in the
+docstring of `platoon_sumo/sensors/raycast.py`):
+
+- **Only facing edges.** A rectangle contributes the edges that face the sensor (at
+  most 2, all 4 if the sensor is inside it): the first hit on a convex box seen from
+  outside is always on a facing edge.
+- **Only rays that hit.** Rays are evenly spaced, so the wedge of directions a segment
+  covers is a contiguous run of ray indices; only those (ray, segment) pairs are
+  evaluated, with one division each (`t = cross(a, e) / cross(d, e)`) and a
+  `minimum.at` scatter. The work is the sum of the obstacles' angular sizes, not
+  rays x segments: about 1.1 evaluations per ray in a queued scene like (c), against
+  1081 x 40 for a brute-force rays x segments test.
+- **Only what is near.** A uniform grid built once per call (cells of half the reach)
+  gives each sensor the vehicles within `range_max` of it, so the cost follows the
+  local density, not the number of vehicles in the network.
+- **No Python loop per sensor.** All sensors' runs go through the same few numpy calls,
+  in chunks of 65,536 evaluations to stay in cache.
+
+The result is exact to rounding (property-tested against a shapely oracle to 1e-9 m)
+and identical whether sensors are scanned one at a time or batched.
+
+Caveats: the city scene (b) is sparse (2,500 cars over 3 km x 3 km leaves most
+sensors with 0-3 cars in range), which is why the queued scene (c) is reported too;
+the cost grows with the number of (ray, surface) hits behind one another. Step and
+scan times vary by tens of percent between runs on this shared 2-core machine.
 """
 
 
@@ -264,7 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(2024)
     a = bench_single_scan(rng)
     b = bench_city(rng)
-    body = render(a, b, "python tools/bench_laser.py")
+    c = bench_queued(rng)
+    body = render(a, b, c, "python tools/bench_laser.py")
     print(body)
     if not args.no_write:
         write_section(args.out, body)

@@ -33,10 +33,10 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import sumo
-import sumolib
-from shapely.geometry import LinearRing, LineString, Polygon
+from shapely.geometry import LinearRing, Polygon
 from shapely.geometry.polygon import orient
-from shapely.ops import unary_union
+
+from platoon_sumo.sumo.network import Network
 
 NETWORKS_DIR = Path(__file__).resolve().parent.parent / "networks"
 
@@ -138,19 +138,6 @@ def normalise_header(path: Path) -> None:
     path.write_text(text, encoding="utf-8")
 
 
-def road_area(net: sumolib.net.Net) -> Polygon:
-    """Union of every lane's footprint and every junction's shape: where vehicles may drive."""
-    parts = [Polygon(node.getShape()) for node in net.getNodes() if len(node.getShape()) >= 3]
-    for edge in net.getEdges(withInternal=True):
-        for lane in edge.getLanes():
-            centre = LineString(lane.getShape())
-            parts.append(centre.buffer(lane.getWidth() / 2.0, cap_style="flat"))
-    area = unary_union(parts)
-    if not isinstance(area, Polygon):
-        raise RuntimeError("the road area is not one connected polygon")
-    return area
-
-
 def wall_rings(area: Polygon, margin_m: float) -> list[tuple[str, LinearRing]]:
     """Walls around the road area: its outer boundary and one closed wall per inner block.
 
@@ -203,8 +190,10 @@ def build_paper_world(out_dir: Path) -> None:
     output.parent.mkdir(parents=True, exist_ok=True)
     run_sumo_tool(paper_world_command(NETWORKS_DIR / "paper_world", output))
     normalise_header(output)
-    net = sumolib.net.readNet(str(output), withInternal=True)
-    write_walls(out_dir / PAPER_WORLD_WALLS, wall_rings(road_area(net), WALL_MARGIN_M))
+    area = Network(output).road_area()
+    if not isinstance(area, Polygon):
+        raise RuntimeError("the paper world's road area is not one connected polygon")
+    write_walls(out_dir / PAPER_WORLD_WALLS, wall_rings(area, WALL_MARGIN_M))
 
 
 def build_all(out_dir: Path) -> None:

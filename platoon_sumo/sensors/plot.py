@@ -35,9 +35,9 @@ def plot_scan(
     world = heading + scan.angles
     r = scan.ranges
     hit = np.isfinite(r)
-    # rays: to the hit, or to range_max (no return / dropout), or nothing when too close
+    # rays: to the hit or to range_max (no return); dropouts and too-close are not drawn
     reach = np.where(hit, r, scan.range_max)
-    drawn = ~np.isneginf(r)
+    drawn = hit | np.isposinf(r)
     ends = np.column_stack((ox + reach * np.cos(world), oy + reach * np.sin(world)))
 
     fig, ax = plt.subplots(figsize=(7.0, 7.0), layout="constrained")
@@ -82,7 +82,7 @@ def plot_scan(
         ax.set_title(title or f"Laser scan at t = {scan.stamp_s:.2f} s\n{counts}", fontsize=10)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_aspect("equal", adjustable="box")
         span = scan.range_max * 1.05
         ax.set_xlim(ox - span, ox + span)
         ax.set_ylim(oy - span, oy + span)

@@ -245,7 +245,7 @@ class SumoBackend:
             vt.setDecel(type_id, decel_mps2)
             vt.setEmergencyDecel(type_id, max(decel_mps2, vt.getEmergencyDecel(type_id)))
             vt.setColor(type_id, (30, 120, 255, 255))
-        except libsumo.TraCIException as exc:
+        except Exception as exc:  # libsumo raises FatalTraCIError for some bad values
             raise SumoError(f"cannot create vehicle type '{type_id}': {exc}") from None
 
     def departed_ids(self) -> tuple[str, ...]:

@@ -16,6 +16,9 @@ from typing import Any
 
 import numpy as np
 import sumolib
+from shapely.geometry import LineString, Polygon
+from shapely.geometry.base import BaseGeometry
+from shapely.ops import unary_union
 
 from platoon_sumo.errors import did_you_mean
 from platoon_sumo.path import RoutePath
@@ -68,6 +71,28 @@ class Network:
     def lane_shape(self, lane_id: str) -> np.ndarray:
         """(k, 2) centre-line of a lane, internal junction lanes included."""
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
+
+    def road_area(self) -> BaseGeometry:
+        """Union of every lane's footprint and every junction's shape: where vehicles drive."""
+        parts = [Polygon(n.getShape()) for n in self._net.getNodes() if len(n.getShape()) >= 3]
+        for edge in self._net.getEdges(withInternal=True):
+            for lane in edge.getLanes():
+                centre = LineString(lane.getShape())
+                parts.append(centre.buffer(lane.getWidth() / 2.0, cap_style="flat"))
+        return unary_union(parts)
+
+    def kerb_segments(self, margin_m: float = 0.0) -> np.ndarray:
+        """(M, 4) segments of the road area's boundary grown by `margin_m`: kerbs a laser sees."""
+        area = self.road_area()
+        if margin_m > 0:
+            area = area.buffer(margin_m, join_style="mitre")
+        polygons = list(getattr(area, "geoms", [area]))
+        rings = [ring for poly in polygons for ring in (poly.exterior, *poly.interiors)]
+        segments = []
+        for ring in rings:
+            pts = np.asarray(ring.coords, dtype=np.float64)
+            segments.append(np.hstack([pts[:-1], pts[1:]]))
+        return np.vstack(segments) if segments else np.empty((0, 4))
 
     def tls_ids(self) -> list[str]:
         return sorted(t.getID() for t in self._net.getTrafficLights())

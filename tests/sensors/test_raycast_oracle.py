@@ -7,10 +7,10 @@ import math
 import hypothesis.strategies as st
 import numpy as np
 from hypothesis import HealthCheck, assume, given, settings
-from laser_oracle import outlines, raw_first_hits, rep117
 from shapely.geometry import Point
 
 from platoon_sumo.sensors import LaserConfig, cast_rays
+from tests.sensors.laser_oracle import outlines, raw_first_hits, rep117
 
 TOL_M = 1e-9
 #: Scene perturbations that tell well-posed rays from grazing ones (see below).
