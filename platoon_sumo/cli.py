@@ -13,11 +13,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+import numpy as np
+
 import platoon_sumo
 from platoon_sumo.errors import PlatoonSumoError, ScenarioError
 
 if TYPE_CHECKING:
     from platoon_sumo.cosim import CoSimulation, StepRecord
+    from platoon_sumo.sensors.laser import LaserScan
 
 DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
 
@@ -89,6 +92,53 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+class ScanGrabber:
+    """Keeps the latest scan of one vehicle with the obstacles of the world it saw."""
+
+    def __init__(self, vehicle_id: str | None):
+        self.vehicle_id = vehicle_id
+        self.scan: LaserScan | None = None
+        self.rectangles: np.ndarray | None = None
+        self.segments: np.ndarray | None = None
+        self._previous: tuple[float, np.ndarray] | None = None
+
+    def on_start(self, sim: CoSimulation) -> None:
+        self.segments = sim.static_segments
+
+    def on_end(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+        previous, self._previous = self._previous, (record.time_s, sim.footprints(record.world))
+        for v in record.vehicles:
+            wanted = self.vehicle_id is None or v.id == self.vehicle_id
+            if wanted and v.scan is not None and previous and previous[0] == v.scan.stamp_s:
+                self.scan, self.rectangles = v.scan, previous[1]
+                break
+
+
+def _cmd_scan(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from platoon_sumo.runner import load_plan, run
+    from platoon_sumo.sensors.plot import plot_scan
+
+    plan = load_plan(args.scenario, end_s=args.at)
+    grabber = ScanGrabber(args.vehicle)
+    with tempfile.TemporaryDirectory() as tmp:
+        run(plan, out_dir=tmp, hooks=[grabber])
+    if grabber.scan is None:
+        who = f"vehicle '{args.vehicle}'" if args.vehicle else "any platoon vehicle"
+        raise ScenarioError(
+            args.scenario, "platoons", f"no laser scan of {who} by t = {args.at} s",
+            "give the platoon a sensor, and a time after it departs",
+        )  # fmt: skip
+    path = plot_scan(grabber.scan, grabber.rectangles, grabber.segments, args.out,
+                     title=f"{args.scenario} t = {grabber.scan.stamp_s:.2f} s")  # fmt: skip
+    print(f"scan written to {path}")
+    return 0
+
+
 def _cmd_validate(args: argparse.Namespace) -> int:
     from platoon_sumo.scenario import load_scenario, prepare
 
@@ -115,6 +165,12 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--seed", type=int, help="override simulation.seed")
     p_run.add_argument("--quiet", action="store_true", help="no progress line")
     p_run.set_defaults(func=_cmd_run)
+    p_scan = sub.add_parser("scan", help="run a scenario to a time and draw a laser scan as PNG")
+    p_scan.add_argument("scenario")
+    p_scan.add_argument("--at", type=float, required=True, help="simulation time [s]")
+    p_scan.add_argument("--vehicle", help="platoon vehicle id, e.g. p1.2 (default: the first)")
+    p_scan.add_argument("--out", default="laser_scan.png", help="PNG file to write")
+    p_scan.set_defaults(func=_cmd_scan)
     p_val = sub.add_parser("validate", help="check a scenario file without running it")
     p_val.add_argument("scenario")
     p_val.set_defaults(func=_cmd_validate)

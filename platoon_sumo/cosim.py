@@ -252,7 +252,7 @@ class CoSimulation:
                 due.setdefault(laser, []).append(v)
         if not due:
             return
-        rects = self._footprints(world)
+        rects = self.footprints(world)
         for laser, group in due.items():
             bumpers = np.array([v.front_bumper() for v in group])
             yaws = np.array([float(v.state.yaw_rad[0]) for v in group])
@@ -268,7 +268,7 @@ class CoSimulation:
                 )
                 self._last_scan_s[v.id] = world.time_s
 
-    def _footprints(self, world: WorldSnapshot) -> FloatArray:
+    def footprints(self, world: WorldSnapshot) -> FloatArray:
         """Rectangles of every vehicle; ours from our own (exact) model state."""
         x, y, yaw = world.front_x_m.copy(), world.front_y_m.copy(), world.yaw_rad.copy()
         for vid, v in self.active.items():
@@ -372,7 +372,7 @@ class CoSimulation:
         if not self.active or len(world) < 2:
             self._overlapping = set()
             return []
-        rects = self._footprints(world)
+        rects = self.footprints(world)
         subjects = np.array([world.index[vid] for vid in self.active if vid in world.index])
         pairs = overlapping_pairs(rects, subjects) if len(subjects) else np.empty((0, 2), int)
         now = {tuple(sorted((world.ids[i], world.ids[j]))) for i, j in pairs}

@@ -27,8 +27,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
+from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.sensors import LaserConfig, cast_rays, scan_many
-from platoon_sumo.sensors.raycast import _rect_corners
 
 REPO = Path(__file__).resolve().parents[1]
 SECTION = "## Laser scanner"
@@ -47,8 +47,7 @@ def naive_shapely_scan(
     origin: np.ndarray, heading: float, config: LaserConfig, rects: np.ndarray
 ) -> np.ndarray:
     """The obvious implementation: one shapely LineString per ray against every outline."""
-    cx, cy = _rect_corners(rects)
-    outlines = [Polygon(np.column_stack((cx[i], cy[i]))).exterior for i in range(len(rects))]
+    outlines = [Polygon(corners).exterior for corners in rectangle_corners(rects)]
     sensor = Point(origin)
     out = np.full(config.samples, np.inf)
     for i, a in enumerate(config.angles_rad):

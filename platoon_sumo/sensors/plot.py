@@ -7,8 +7,9 @@ import os
 import numpy as np
 from numpy.typing import ArrayLike
 
+from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.sensors.laser import LaserScan
-from platoon_sumo.sensors.raycast import _as_rectangles, _as_segments, _rect_corners
+from platoon_sumo.sensors.raycast import obstacle_arrays
 
 
 def plot_scan(
@@ -30,7 +31,7 @@ def plot_scan(
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection, PolyCollection
 
-    rects, segs = _as_rectangles(rectangles), _as_segments(segments)
+    rects, segs = obstacle_arrays(rectangles, segments)
     ox, oy, heading = scan.origin_x_m, scan.origin_y_m, scan.heading_rad
     world = heading + scan.angles
     r = scan.ranges
@@ -43,8 +44,7 @@ def plot_scan(
     fig, ax = plt.subplots(figsize=(7.0, 7.0), layout="constrained")
     try:
         if rects.shape[0]:
-            cx, cy = _rect_corners(rects)
-            polys = np.stack((cx, cy), axis=-1)
+            polys = rectangle_corners(rects)
             ax.add_collection(
                 PolyCollection(
                     list(polys),

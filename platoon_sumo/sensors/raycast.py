@@ -28,6 +28,7 @@ from statistics import NormalDist
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from platoon_sumo.geometry import as_rectangles, rectangle_corners
 from platoon_sumo.sensors.laser import LaserConfig
 
 FloatArray = NDArray[np.float64]
@@ -39,9 +40,6 @@ _TWO_PI = 2.0 * math.pi
 _CULL_SLACK_M = 1e-6
 #: (ray, segment) evaluations per numpy batch: bounds memory and stays cache friendly.
 _ROWS_PER_CHUNK = 1 << 16
-#: Rectangle corners in its own frame (x along yaw), counter-clockwise; edge j runs from
-#: corner j to corner j+1: 0 front, 1 left, 2 rear, 3 right.
-_CORNER_SIGNS = np.array([[1.0, -1.0], [1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0]])
 
 
 def cast_rays(
@@ -65,7 +63,7 @@ def cast_rays(
     """
     origins = np.asarray(origin, dtype=np.float64).reshape(1, 2)
     headings = np.asarray([heading], dtype=np.float64)
-    rects, segs = _as_rectangles(rectangles), _as_segments(segments)
+    rects, segs = obstacle_arrays(rectangles, segments)
     raw = _raw_ranges(origins, headings, config, rects, segs, None, use_grid=False)
     return _finish(raw, config, rng)[0]
 
@@ -94,7 +92,7 @@ def scan_many(
         excl = np.asarray(exclude, dtype=np.intp).reshape(-1)
         if excl.shape[0] != pos.shape[0]:
             raise ValueError(f"exclude: expected {pos.shape[0]} values, got {excl.shape[0]}")
-    rects, segs = _as_rectangles(rectangles), _as_segments(segments)
+    rects, segs = obstacle_arrays(rectangles, segments)
     raw = _raw_ranges(pos, head, config, rects, segs, excl, use_grid=True)
     return _finish(raw, config, rng)
 
@@ -131,26 +129,19 @@ def apply_noise(
 # ----------------------------------------------------------------------------- internals
 
 
-def _as_rectangles(rectangles: ArrayLike | None) -> FloatArray:
-    if rectangles is None:
-        return np.empty((0, 5))
-    r = np.asarray(rectangles, dtype=np.float64)
-    if r.size == 0:
-        return np.empty((0, 5))
-    if r.ndim != 2 or r.shape[1] != 5:
-        raise ValueError(f"rectangles: expected shape (N, 5), got {r.shape}")
-    return r
-
-
-def _as_segments(segments: ArrayLike | None) -> FloatArray:
-    if segments is None:
-        return np.empty((0, 4))
-    s = np.asarray(segments, dtype=np.float64)
-    if s.size == 0:
-        return np.empty((0, 4))
-    if s.ndim != 2 or s.shape[1] != 4:
-        raise ValueError(f"segments: expected shape (M, 4), got {s.shape}")
-    return s
+def obstacle_arrays(
+    rectangles: ArrayLike | None, segments: ArrayLike | None
+) -> tuple[FloatArray, FloatArray]:
+    """Validated ``(N, 5)`` rectangles and ``(M, 4)`` segments; None or empty gives 0 rows."""
+    rects = np.empty((0, 5))
+    if rectangles is not None and np.size(rectangles):
+        rects = as_rectangles(rectangles)
+    segs = np.empty((0, 4))
+    if segments is not None and np.size(segments):
+        segs = np.asarray(segments, dtype=np.float64)
+        if segs.ndim != 2 or segs.shape[1] != 4:
+            raise ValueError(f"segments: expected shape (M, 4), got {segs.shape}")
+    return rects, segs
 
 
 def _finish(raw: FloatArray, config: LaserConfig, rng: np.random.Generator | None) -> FloatArray:
@@ -160,14 +151,6 @@ def _finish(raw: FloatArray, config: LaserConfig, rng: np.random.Generator | Non
     raw[raw > config.range_max_m] = np.inf
     raw[raw < config.range_min_m] = -np.inf
     return apply_noise(raw, config, rng)
-
-
-def _rect_corners(rects: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """World corners (N, 4) x and y, in the order of ``_CORNER_SIGNS``."""
-    c, s = np.cos(rects[:, 2:3]), np.sin(rects[:, 2:3])
-    lx = 0.5 * rects[:, 3:4] * _CORNER_SIGNS[:, 0]
-    ly = 0.5 * rects[:, 4:5] * _CORNER_SIGNS[:, 1]
-    return rects[:, 0:1] + c * lx - s * ly, rects[:, 1:2] + s * lx + c * ly
 
 
 def _near_pairs(
@@ -228,7 +211,8 @@ def _facing_edges(
     use_grid: bool,
 ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Rectangle edges that can be a first hit: (sensor, ax, ay, bx, by) per edge."""
-    cxs, cys = _rect_corners(rects)
+    corners = rectangle_corners(rects)  # front-right, front-left, rear-left, rear-right
+    cxs, cys = corners[..., 0], corners[..., 1]
     # bucket by centre (one grid cell each, no duplicates), reach widened to compensate
     half_diag = 0.5 * np.hypot(rects[:, 3], rects[:, 4])
     centre = rects[:, 0:2]

@@ -76,3 +76,29 @@ def test_forward_ray_measures_the_true_bumper_gap(write_scenario, tmp_path):
     assert len(measured) > 50
     assert truth.min() < 5.0 < 25.0 < truth.max()  # approached from far to standstill
     assert np.abs(measured - truth).max() < 1e-6
+
+
+def test_scan_command_draws_the_scan_as_png(write_scenario, tmp_path, capsys):
+    import matplotlib.image
+
+    from platoon_sumo.cli import main
+
+    scenario = write_scenario(scenario_with_laser())
+    png = tmp_path / "scan.png"
+    assert main(["scan", str(scenario), "--at", "20", "--out", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    pixels = matplotlib.image.imread(png)
+    assert pixels.shape[0] > 500 and pixels.shape[1] > 500
+    assert pixels[..., :3].std() > 0.05  # not a blank canvas
+    assert "scan written" in capsys.readouterr().out
+
+
+def test_scan_command_without_sensor_explains_what_to_do(write_scenario, tmp_path, capsys):
+    from platoon_sumo.cli import main
+
+    data = scenario_with_laser()
+    del data["platoons"][0]["sensor"]
+    code = main(["scan", str(write_scenario(data)), "--at", "10", "--out", str(tmp_path / "x.png")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no laser scan" in err and "give the platoon a sensor" in err
