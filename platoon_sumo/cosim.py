@@ -22,8 +22,9 @@ from platoon_sumo.path import RoutePath
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
 from platoon_sumo.sensors.raycast import scan_many
-from platoon_sumo.sumo.backend import SignalAhead, SumoBackend, VehicleAhead, WorldSnapshot
+from platoon_sumo.sumo.backend import SumoBackend
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
+from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
 
 FloatArray = NDArray[np.float64]
 
@@ -138,6 +139,7 @@ class CoSimulation:
         self._waiting_insert: dict[str, MemberPlan] = {}
         self._paths: dict[tuple[str, ...], RoutePath] = {}
         self._overlapping: set[tuple[str, ...]] = set()
+        self._sumo_contacts: set[tuple[str, str]] = set()
         self._last_scan_s: dict[str, float] = {}
         self.world: WorldSnapshot | None = None
 
@@ -163,12 +165,14 @@ class CoSimulation:
         self.backend.step()
         self.counters.steps += 1
         self.counters.teleports += self.backend.teleport_count()
-        self.counters.sumo_collisions += sum(1 for _ in self.backend.sumo_collisions())
+        sumo_contacts = {(a, b) for a, b, _ in self.backend.sumo_collisions()}
+        self.counters.sumo_collisions += len(sumo_contacts - self._sumo_contacts)
+        self._sumo_contacts = sumo_contacts
         self._handle_arrivals()
         world = self.world = self.backend.snapshot()
         self._handle_departures(world)
-        vehicles = list(self.active.values())
-        violations = self._update_route_progress(vehicles)
+        violations = self._update_route_progress(list(self.active.values()))
+        vehicles = list(self.active.values())  # those that reached their route's end are gone
         collisions = self._check_collisions(world)
         record = StepRecord(
             world.time_s, world, tuple(vehicles), tuple(collisions), tuple(violations)
@@ -348,7 +352,11 @@ class CoSimulation:
             v.route_s_m, v.lateral_offset_m = point.s_m, point.lateral_offset_m
             previous, v.signal = v.signal, self.backend.next_signal(v.id)
             v.vehicle_ahead = self.backend.vehicle_ahead(v.id, self._ahead_horizon_m(v))
-            if previous is not None and previous.state in "rRu" and _passed(previous, v.signal):
+            if (
+                previous is not None
+                and previous.state in ("r", "u")
+                and _passed(previous, v.signal)
+            ):
                 violation = RedLightViolation(
                     time_s, v.id, previous.tls_id, previous.link_index, previous.state
                 )
@@ -359,6 +367,7 @@ class CoSimulation:
                 self.backend.forget([v.id])
                 del self.active[v.id]
                 self.counters.platoon_arrived.append(v.id)
+                self.counters.arrived_total += 1
         return violations
 
     @staticmethod

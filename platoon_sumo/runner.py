@@ -30,6 +30,12 @@ from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
 from platoon_sumo.sumo.shapes import read_wall_segments
 from platoon_sumo.traffic import write_traffic_inputs
 
+#: Everything a run writes at the top of its folder; removed first so nothing stale remains.
+OUTPUT_FILES = (
+    "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "tripinfo.csv",
+    "sumo_statistics.xml",
+)  # fmt: skip
+
 
 @dataclass(frozen=True)
 class RunResult:
@@ -68,9 +74,12 @@ def run(
     sc = plan.scenario
     directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name)
     directory.mkdir(parents=True, exist_ok=True)
-    for stale in ("summary.json", "FAILED.txt"):
+    for stale in OUTPUT_FILES:
         (directory / stale).unlink(missing_ok=True)
-    shutil.copyfile(plan.source.path, directory / "scenario.yaml")
+    shutil.rmtree(directory / "inputs", ignore_errors=True)
+    (directory / "scenario.yaml").write_text(
+        plan.source.reproducible_yaml(sc.simulation), encoding="utf-8"
+    )
     try:
         return _run(plan, directory, hooks)
     except BaseException as exc:

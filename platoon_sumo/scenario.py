@@ -352,6 +352,28 @@ class ScenarioSource:
     def sha256(self) -> str:
         return hashlib.sha256(self.text.encode()).hexdigest()
 
+    def reproducible_yaml(self, simulation: SimulationConfig) -> str:
+        """The scenario as run: effective seed and times, file paths made absolute, so the
+        copy in a results folder repeats the run from anywhere."""
+        data = dict(yaml.safe_load(self.text))
+        data.setdefault("name", self.scenario.name)
+        data["simulation"] = {**(data.get("simulation") or {}), **dataclasses.asdict(simulation)}
+
+        def absolute(section: str, key: str) -> None:
+            part = data.get(section) or {}
+            value = part.get(key)
+            if isinstance(value, str) and not value.startswith("sumo:"):
+                part[key] = str(self.resolve(value))
+            elif isinstance(value, list):
+                part[key] = [v if v.startswith("sumo:") else str(self.resolve(v)) for v in value]
+
+        for section, key in (("network", "net_file"), ("network", "sumocfg"),
+                             ("network", "route_files"), ("network", "additional_files"),
+                             ("traffic", "route_files")):  # fmt: skip
+            absolute(section, key)
+        header = f"# {self.path} (sha256 {self.sha256}) as run by platoon-sumo\n"
+        return header + yaml.safe_dump(data, sort_keys=False)
+
     def resolve(self, value: str) -> Path:
         if value.startswith("sumo:"):
             return resolve_sumo_path(value)
@@ -491,10 +513,12 @@ def _network_files(source: ScenarioSource) -> tuple[Path, tuple[Path, ...], tupl
 
 
 def _check_traffic(sc: Scenario, network: Network, file: str) -> None:
-    type_ids = {t.id for t in sc.traffic.vehicle_types}
+    vclass_of = {t.id: t.vclass for t in sc.traffic.vehicle_types}
+    type_ids = set(vclass_of)
     for i, flow in enumerate(sc.traffic.flows):
         key = f"traffic.flows[{i}]"
-        _route_edges(network, file, key, (), flow.from_edge, flow.to_edge, flow.via_edges)
+        vclass = vclass_of.get(flow.type or "", "passenger")
+        _route_edges(network, file, key, (), flow.from_edge, flow.to_edge, flow.via_edges, vclass)
         if flow.type is not None and flow.type not in type_ids | {"DEFAULT_VEHTYPE"}:
             raise ScenarioError(
                 file, f"{key}.type", f"unknown vehicle type '{flow.type}'",
@@ -511,13 +535,14 @@ def _route_edges(
     from_edge: str | None,
     to_edge: str | None,
     via: tuple[str, ...],
+    vclass: str = "passenger",
 ) -> tuple[str, ...]:
     try:
         if edges:
             network.check_edges(edges)
             return edges
         assert from_edge is not None and to_edge is not None
-        return tuple(network.shortest_route(from_edge, to_edge, via))
+        return tuple(network.shortest_route(from_edge, to_edge, via, vclass))
     except RouteError as exc:
         if edges:
             where = f"{key}.edges[{exc.index}]" if exc.index is not None else f"{key}.edges"
@@ -532,8 +557,9 @@ def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> P
     key = f"platoons[{i}]"
     r = p.route
     edges = _route_edges(
-        network, file, f"{key}.route", r.edges, r.from_edge, r.to_edge, r.via_edges
-    )
+        network, file, f"{key}.route", r.edges, r.from_edge, r.to_edge, r.via_edges,
+        p.vehicle.vclass,
+    )  # fmt: skip
     first = edges[0]
     lanes = network.lane_count(first)
     depart_lane = p.depart_lane if p.depart_lane is not None else 0

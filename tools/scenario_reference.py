@@ -443,11 +443,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {OUTPUT.relative_to(ROOT)}")
     used, redundant = fallback_report()
     if used:
-        print(f"{len(used)} fields have no docstring (meaning taken from _FALLBACK_DOCS):")
-        print("  " + ", ".join(used))
+        print(
+            f"{len(used)} fields have no docstring (meaning taken from _FALLBACK_DOCS):",
+            file=sys.stderr,
+        )
+        print("  " + ", ".join(used), file=sys.stderr)
     if redundant:
         print(
-            "delete from _FALLBACK_DOCS (documented in the code, or gone): " + ", ".join(redundant)
+            "delete from _FALLBACK_DOCS (documented in the code, or gone): " + ", ".join(redundant),
+            file=sys.stderr,
         )
     return 0
 

@@ -12,8 +12,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 from platoon_sumo.path import RoutePath
 from platoon_sumo.registry import Registry
 from platoon_sumo.sensors.laser import LaserScan
-from platoon_sumo.sumo.backend import SignalAhead, VehicleAhead
 from platoon_sumo.vehicles import MotionLimits
+from platoon_sumo.world import SignalAhead, VehicleAhead
 
 
 @dataclass(frozen=True)

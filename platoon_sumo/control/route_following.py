@@ -149,11 +149,11 @@ class RouteFollowing:
         v = obs.speed_mps
         if d <= 0.0:
             # Past the planned stop point: on yellow drive on; on red hold (or creep) at the line.
-            return math.inf if signal.state in "yY" else 0.0
+            return math.inf if signal.state == "y" else 0.0
         needed = v * v / (2 * d)
         if needed <= self.params.comfort_decel_mps2:
             return math.sqrt(2 * self.params.comfort_decel_mps2 * d)
-        if signal.state in "yY" and needed > self.params.yellow_max_decel_mps2:
+        if signal.state == "y" and needed > self.params.yellow_max_decel_mps2:
             return math.inf
         # Late (the light just changed): brake just hard enough to stop at the line.
         return max(v - needed * obs.dt_s, 0.0)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import libsumo
@@ -19,6 +19,7 @@ import sumo
 from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
+from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -79,49 +80,6 @@ class SumoOptions:
         if self.statistics_file:
             cmd += ["--statistic-output", self.statistics_file]
         return [*cmd, *self.extra_args]
-
-
-@dataclass(frozen=True)
-class WorldSnapshot:
-    """Every vehicle in the network at one instant. Positions are FRONT BUMPER centres."""
-
-    time_s: float
-    ids: tuple[str, ...]
-    front_x_m: NDArray[np.float64]
-    front_y_m: NDArray[np.float64]
-    yaw_rad: NDArray[np.float64]
-    length_m: NDArray[np.float64]
-    width_m: NDArray[np.float64]
-    speed_mps: NDArray[np.float64]
-    lane_ids: tuple[str, ...]
-    index: dict[str, int] = field(repr=False)
-
-    def __len__(self) -> int:
-        return len(self.ids)
-
-
-@dataclass(frozen=True)
-class SignalAhead:
-    """The next traffic light on a vehicle's route: link state and distance to its stop line."""
-
-    tls_id: str
-    link_index: int
-    state: str
-    distance_m: float
-
-    @property
-    def is_stop(self) -> bool:
-        """Red, red-yellow or yellow: a driver stops if it can."""
-        return self.state in "rRuyY"
-
-
-@dataclass(frozen=True)
-class VehicleAhead:
-    """The vehicle in front on the same route lanes: bumper-to-bumper gap and its speed."""
-
-    vehicle_id: str
-    gap_m: float
-    speed_mps: float
 
 
 class SumoBackend:

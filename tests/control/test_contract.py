@@ -11,7 +11,7 @@ import pytest
 from platoon_sumo.control import CONTROLLERS
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.path import RoutePath
-from platoon_sumo.sumo.backend import SignalAhead
+from platoon_sumo.world import SignalAhead
 from platoon_sumo.vehicles import MotionLimits
 
 

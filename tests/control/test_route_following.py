@@ -10,7 +10,7 @@ import pytest
 from platoon_sumo.control.base import Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 from platoon_sumo.path import RoutePath
-from platoon_sumo.sumo.backend import SignalAhead, VehicleAhead
+from platoon_sumo.world import SignalAhead, VehicleAhead
 from platoon_sumo.vehicles import Bicycle, KinematicState, MotionLimits
 
 LIMITS = MotionLimits(

@@ -108,8 +108,11 @@ def test_same_scenario_and_seed_give_identical_outputs(write_scenario, tmp_path)
     )
     first = run(load_plan(scenario), tmp_path / "a").directory
     second = run(load_plan(scenario), tmp_path / "b").directory
+    # The copy in a results folder repeats the run on its own (absolute paths, seed, times).
+    third = run(load_plan(first / "scenario.yaml"), tmp_path / "c").directory
     for name in ("trajectories.csv", "tripinfo.csv"):
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
+        assert (first / name).read_bytes() == (third / name).read_bytes(), name
     assert (first / "trajectories.csv").stat().st_size > 10_000
 
 

@@ -1,0 +1,54 @@
+"""What the loop knows about the world at one instant: plain records, no SUMO import.
+
+The backend fills them from libsumo; controllers, sensors and recorders read them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class WorldSnapshot:
+    """Every vehicle in the network at one instant. Positions are FRONT BUMPER centres."""
+
+    time_s: float
+    ids: tuple[str, ...]
+    front_x_m: NDArray[np.float64]
+    front_y_m: NDArray[np.float64]
+    yaw_rad: NDArray[np.float64]
+    length_m: NDArray[np.float64]
+    width_m: NDArray[np.float64]
+    speed_mps: NDArray[np.float64]
+    lane_ids: tuple[str, ...]
+    index: dict[str, int] = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True)
+class SignalAhead:
+    """The next traffic light on a vehicle's route: link state and distance to its stop line."""
+
+    tls_id: str
+    link_index: int
+    state: str
+    distance_m: float
+
+    @property
+    def is_stop(self) -> bool:
+        """Red, red-yellow or yellow: a driver stops if it can."""
+        return self.state in ("r", "u", "y")
+
+
+@dataclass(frozen=True)
+class VehicleAhead:
+    """The vehicle in front on the same route lanes: bumper-to-bumper gap and its speed."""
+
+    vehicle_id: str
+    gap_m: float
+    speed_mps: float
