@@ -11,8 +11,8 @@ import pytest
 from platoon_sumo.control import CONTROLLERS
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.path import RoutePath
-from platoon_sumo.world import SignalAhead
 from platoon_sumo.vehicles import MotionLimits
+from platoon_sumo.world import SignalAhead
 
 
 class _NoSumo:

@@ -10,8 +10,8 @@ import pytest
 from platoon_sumo.control.base import Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 from platoon_sumo.path import RoutePath
-from platoon_sumo.world import SignalAhead, VehicleAhead
 from platoon_sumo.vehicles import Bicycle, KinematicState, MotionLimits
+from platoon_sumo.world import SignalAhead, VehicleAhead
 
 LIMITS = MotionLimits(
     max_speed_mps=15.0,
