@@ -248,7 +248,7 @@ class CoSimulation:
         """Scans for equipped vehicles whose sensor period has elapsed, batched per config."""
         due: dict[LaserConfig, list[PlatoonVehicle]] = {}
         for v in vehicles:
-            laser = v.platoon.laser
+            laser = v.plan.laser
             if laser is None:
                 continue
             last = self._last_scan_s.get(v.id, -math.inf)

@@ -50,6 +50,7 @@ class SimulationConfig:
     end_s: float = 600.0
     """Simulated time at which the run stops [s]."""
     begin_s: float = 0.0
+    """Simulated time at which SUMO starts [s]."""
     seed: int = 42
     """Seeds SUMO and every random generator of ours."""
     lateral_resolution_m: float = 0.8
@@ -72,6 +73,7 @@ class NetworkConfig:
     sumocfg: str | None = None
     """A .sumocfg: its net, route and additional files are used."""
     route_files: tuple[str, ...] = ()
+    """SUMO route files (`.rou.xml`) loaded with the network."""
     additional_files: tuple[str, ...] = ()
     """Polygons of type `wall` or `building*` in these files are obstacles for lasers."""
     kerbs: bool = False
@@ -93,24 +95,37 @@ class VehicleTypeConfig:
     """A SUMO vehicle type for human-driven traffic, with its driver model."""
 
     id: str
+    """Type id; `traffic.flows[].type` refers to it."""
     car_follow_model: str = "Krauss"
+    """SUMO car-following model (list below)."""
     probability: float = 1.0
     """Share of this type in the background mix."""
     vclass: str = "passenger"
+    """SUMO vehicle class; decides which lanes the type may use."""
     length_m: float = 5.0
+    """Length, bumper to bumper [m]."""
     width_m: float = 1.8
+    """Width [m]."""
     min_gap_m: float = 2.5
+    """Gap kept to the vehicle ahead when stopped [m]."""
     max_speed_mps: float = 55.0
+    """Top speed [m/s]."""
     accel_mps2: float = 2.6
+    """Maximum acceleration [m/s²]."""
     decel_mps2: float = 4.5
+    """Comfortable deceleration [m/s²]."""
     emergency_decel_mps2: float = 9.0
+    """Deceleration in an emergency [m/s²]."""
     sigma: float = 0.5
     """Driver imperfection (Krauss family)."""
     tau_s: float = 1.0
     """Desired time headway."""
     speed_factor: float = 1.0
+    """Mean multiplier on lane speed limits (SUMO speedFactor)."""
     speed_dev: float = 0.1
+    """Spread of the speed factor between drivers (SUMO speedDev)."""
     lane_change_model: str = "SL2015"
+    """SUMO lane-change model."""
     params: Mapping[str, Any] = field(default_factory=dict)
     """Further attributes written as-is onto the vType (e.g. `delta` for IDM)."""
 
@@ -133,10 +148,15 @@ class VehicleTypeConfig:
 @dataclass(frozen=True)
 class FlowConfig:
     from_edge: str
+    """First edge of the flow's route."""
     to_edge: str
+    """Last edge of the flow's route."""
     vehs_per_hour: float
+    """Vehicles an hour."""
     via_edges: tuple[str, ...] = ()
+    """Edges the route must pass, in order."""
     begin_s: float = 0.0
+    """Start of the flow [s]."""
     end_s: float | None = None
     """Defaults to the simulation's end."""
     type: str | None = None
@@ -154,10 +174,13 @@ class RandomTripsConfig:
     period_s: float
     """Mean time between two departures [s] (e.g. 0.5 = 7,200 vehicles an hour)."""
     begin_s: float = 0.0
+    """Time of the first departure [s]."""
     end_s: float | None = None
+    """End of the departures [s]; default: the simulation's end."""
     seed: int | None = None
     """Defaults to the simulation seed."""
     min_distance_m: float = 300.0
+    """Shortest distance between a trip's start and end [m]."""
     fringe_factor: float = 5.0
     """How much more likely trips start/end at the network border than inside."""
 
@@ -170,9 +193,14 @@ class RandomTripsConfig:
 @dataclass(frozen=True)
 class TrafficConfig:
     vehicle_types: tuple[VehicleTypeConfig, ...] = ()
+    """Vehicle types of the human-driven traffic; flows and random trips without a `type`
+    draw from them by `probability`."""
     route_files: tuple[str, ...] = ()
+    """SUMO route files (`.rou.xml`) of human-driven traffic."""
     flows: tuple[FlowConfig, ...] = ()
+    """Flows of human-driven vehicles between two edges, routed by SUMO."""
     random_trips: RandomTripsConfig | None = None
+    """Random trips all over the network (null: none)."""
 
     def __post_init__(self) -> None:
         ids = [t.id for t in self.vehicle_types]
@@ -187,9 +215,13 @@ class TrafficConfig:
 @dataclass(frozen=True)
 class RouteConfig:
     edges: tuple[str, ...] = ()
+    """The route as the full list of connected edges."""
     from_edge: str | None = None
+    """Start edge; the fastest route to `to_edge` is computed."""
     to_edge: str | None = None
+    """Destination edge (with `from_edge`)."""
     via_edges: tuple[str, ...] = ()
+    """Edges the computed route must pass, in order."""
 
     def __post_init__(self) -> None:
         require(
@@ -211,18 +243,27 @@ class VehicleConfig:
     model: str = "bicycle"
     """A registered vehicle model: bicycle (cars) or unicycle (differential-drive robots)."""
     length_m: float = 4.5
+    """Length, bumper to bumper [m]."""
     width_m: float = 1.8
+    """Width [m]."""
     min_gap_m: float = 2.5
     """What SUMO drivers keep behind this vehicle when stopped."""
     wheelbase_m: float = 2.7
+    """Rear axle to front axle [m] (bicycle model)."""
     rear_overhang_m: float | None = None
     """Rear bumper to reference point (rear axle); default centres the wheelbase."""
     max_speed_mps: float = 16.7
+    """Top speed [m/s]."""
     max_accel_mps2: float = 2.5
+    """Maximum acceleration [m/s²]."""
     max_decel_mps2: float = 7.5
+    """Maximum braking deceleration [m/s²]."""
     max_yaw_rate_radps: float = 1.0
+    """Largest yaw rate [rad/s]."""
     max_steer_rad: float = 0.6
+    """Front-wheel steering limit [rad] (bicycle model)."""
     vclass: str = "passenger"
+    """SUMO vehicle class of the platoon's vehicle type."""
 
     def __post_init__(self) -> None:
         require_choice(self.model, VEHICLE_MODELS.names(), "model")
@@ -259,39 +300,52 @@ class VehicleConfig:
 
 
 @dataclass(frozen=True)
-class ControllerConfig:
-    type: str = "route_following"
-    """A registered controller name or `package.module:Class`."""
-    params: Mapping[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
 class SensorConfig:
     """A laser scanner: a preset name, optionally with fields overridden."""
 
     preset: str = "utm30lx"
+    """A laser preset (see Laser presets below)."""
     overrides: Mapping[str, float | int] = field(default_factory=dict)
+    """Laser fields replacing the preset's (see Laser presets below)."""
 
     def __post_init__(self) -> None:
         require_choice(self.preset, sorted(LASER_PRESETS), "preset")
 
 
 @dataclass(frozen=True)
+class RoleConfig:
+    """How a platoon member of one role (leader / follower) decides and senses."""
+
+    type: str = "route_following"
+    """A registered controller name or `package.module:Class`."""
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """The controller's parameters (its Params dataclass; see the controller tables)."""
+    sensor: SensorConfig | None = None
+    """Laser scanner of the members in this role; null: no scan in their observations."""
+
+
+@dataclass(frozen=True)
 class PlatoonConfig:
     id: str
+    """Platoon name; its vehicles are `<id>.0` (leader), `<id>.1`, ..."""
     route: RouteConfig
+    """The route every member drives."""
     members: int = 1
+    """Number of vehicles (1 to 100); member 0 leads."""
     depart_s: float = 0.0
+    """When the platoon is handed to SUMO for insertion [s]."""
     spacing_m: float = 8.0
     """Initial bumper-to-bumper gap between members [m]."""
     depart_pos_m: float | None = None
     """Leader's front bumper on the first edge [m]; default: just room for everyone."""
     depart_lane: int | None = None
+    """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
-    leader: ControllerConfig = ControllerConfig()
-    follower: ControllerConfig = ControllerConfig()
-    sensor: SensorConfig | None = None
-    """Laser scanner of every member (None: no scan in the observations)."""
+    """Geometry, motion model and limits of the members."""
+    leader: RoleConfig = RoleConfig()
+    """Controller of member 0."""
+    follower: RoleConfig = RoleConfig()
+    """Controller of members 1 and up."""
 
     def __post_init__(self) -> None:
         require(
@@ -324,12 +378,14 @@ class OutputConfig:
 @dataclass(frozen=True)
 class Scenario:
     name: str
+    """Run name: the default results folder is `results/<name>`."""
     simulation: SimulationConfig = SimulationConfig()
     network: NetworkConfig = NetworkConfig(net_file="")
     traffic: TrafficConfig = TrafficConfig()
     platoons: tuple[PlatoonConfig, ...] = ()
     outputs: OutputConfig = OutputConfig()
     description: str = ""
+    """Free text for people; the run does not use it."""
 
     def __post_init__(self) -> None:
         ids = [p.id for p in self.platoons]
@@ -421,6 +477,7 @@ class MemberPlan:
     controller_cls: type[Controller]
     controller_params: Any
     depart_pos_m: float
+    laser: LaserConfig | None = None
 
 
 @dataclass(frozen=True)
@@ -430,7 +487,6 @@ class PlatoonPlan:
     depart_lane: int
     members: tuple[MemberPlan, ...]
     model: type[VehicleModel]
-    laser: LaserConfig | None
 
     @property
     def type_id(self) -> str:
@@ -609,26 +665,29 @@ def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> P
             )  # fmt: skip
         params = load_dataclass(cls.Params, dict(ctrl.params), file, f"{ctrl_key}.params")
         pos = depart_pos - k * (p.vehicle.length_m + p.spacing_m)
-        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos))
-    laser = None
-    if p.sensor is not None:
-        fields = [f.name for f in dataclasses.fields(LaserConfig)]
-        for name in p.sensor.overrides:
-            if name not in fields:
-                raise ScenarioError(
-                    file, f"{key}.sensor.overrides.{name}",
-                    f"unknown laser setting (allowed: {', '.join(fields)})",
-                    did_you_mean(name, fields),
-                )  # fmt: skip
-        try:
-            laser = LaserConfig.preset(p.sensor.preset, **dict(p.sensor.overrides))
-        except (TypeError, ValueError) as exc:
-            raise ScenarioError(file, f"{key}.sensor.overrides", str(exc)) from None
+        laser = _laser(ctrl.sensor, file, f"{ctrl_key}.sensor")
+        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, laser))
     return PlatoonPlan(
         config=p,
         edges=edges,
         depart_lane=depart_lane,
         members=tuple(members),
         model=VEHICLE_MODELS.get(p.vehicle.model),
-        laser=laser,
     )
+
+
+def _laser(sensor: SensorConfig | None, file: str, key: str) -> LaserConfig | None:
+    if sensor is None:
+        return None
+    fields = [f.name for f in dataclasses.fields(LaserConfig)]
+    for name in sensor.overrides:
+        if name not in fields:
+            raise ScenarioError(
+                file, f"{key}.overrides.{name}",
+                f"unknown laser setting (allowed: {', '.join(fields)})",
+                did_you_mean(name, fields),
+            )  # fmt: skip
+    try:
+        return LaserConfig.preset(sensor.preset, **dict(sensor.overrides))
+    except (TypeError, ValueError) as exc:
+        raise ScenarioError(file, f"{key}.overrides", str(exc)) from None

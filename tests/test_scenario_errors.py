@@ -325,16 +325,16 @@ CASES = [
     ),
     Case(
         "unknown_laser_preset",
-        "platoons[0].sensor.preset",
+        "platoons[0].leader.sensor.preset",
         ("unknown value 'utm30'", "utm30lx"),
-        put("platoons.0.sensor", {"preset": "utm30"}),
+        put("platoons.0.leader.sensor", {"preset": "utm30"}),
         hint="did you mean 'utm30lx'?",
     ),
     Case(
         "unknown_laser_override",
-        "platoons[0].sensor.overrides.noise_std",
+        "platoons[0].leader.sensor.overrides.noise_std",
         ("unknown laser setting", "noise_std_m"),
-        put("platoons.0.sensor", {"preset": "utm30lx", "overrides": {"noise_std": 0.01}}),
+        put("platoons.0.leader.sensor", {"preset": "utm30lx", "overrides": {"noise_std": 0.01}}),
         hint="did you mean 'noise_std_m'?",
     ),
     # ------------------------------------------------------------------ controllers
@@ -579,7 +579,7 @@ def test_integer_laser_override_is_accepted(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     data = valid_scenario()
-    data["platoons"][0]["sensor"] = {"preset": "utm30lx", "overrides": {"samples": 500}}
+    data["platoons"][0]["leader"]["sensor"] = {"preset": "utm30lx", "overrides": {"samples": 500}}
     path = tmp_path / "sensor.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     code = main(["validate", str(path)])

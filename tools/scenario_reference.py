@@ -47,62 +47,6 @@ _DEFAULT_OVERRIDES = {
 # Meanings of fields that have no attribute docstring in the code yet, by `Class.field`.
 # A docstring in the code always wins; `python tools/scenario_reference.py` lists the
 # fields that still rely on this table, and the entries made redundant by a docstring.
-_FALLBACK_DOCS = {
-    "Scenario.name": "Run name: the default results folder is `results/<name>`.",
-    "Scenario.description": "Free text for people; the run does not use it.",
-    "SimulationConfig.begin_s": "Simulated time at which SUMO starts [s].",
-    "NetworkConfig.route_files": "SUMO route files (`.rou.xml`) loaded with the network.",
-    "TrafficConfig.vehicle_types": "Vehicle types of the human-driven traffic; flows and "
-    "random trips without a `type` draw from them by `probability`.",
-    "TrafficConfig.route_files": "SUMO route files (`.rou.xml`) of human-driven traffic.",
-    "TrafficConfig.flows": "Flows of human-driven vehicles between two edges, routed by SUMO.",
-    "TrafficConfig.random_trips": "Random trips all over the network (null: none).",
-    "VehicleTypeConfig.id": "Type id; `traffic.flows[].type` refers to it.",
-    "VehicleTypeConfig.car_follow_model": "SUMO car-following model (list below).",
-    "VehicleTypeConfig.vclass": "SUMO vehicle class; decides which lanes the type may use.",
-    "VehicleTypeConfig.length_m": "Length, bumper to bumper [m].",
-    "VehicleTypeConfig.width_m": "Width [m].",
-    "VehicleTypeConfig.min_gap_m": "Gap kept to the vehicle ahead when stopped [m].",
-    "VehicleTypeConfig.max_speed_mps": "Top speed [m/s].",
-    "VehicleTypeConfig.accel_mps2": "Maximum acceleration [m/s²].",
-    "VehicleTypeConfig.decel_mps2": "Comfortable deceleration [m/s²].",
-    "VehicleTypeConfig.emergency_decel_mps2": "Deceleration in an emergency [m/s²].",
-    "VehicleTypeConfig.speed_factor": "Mean multiplier on lane speed limits (SUMO speedFactor).",
-    "VehicleTypeConfig.speed_dev": "Spread of the speed factor between drivers (SUMO speedDev).",
-    "VehicleTypeConfig.lane_change_model": "SUMO lane-change model.",
-    "FlowConfig.from_edge": "First edge of the flow's route.",
-    "FlowConfig.to_edge": "Last edge of the flow's route.",
-    "FlowConfig.vehs_per_hour": "Vehicles an hour.",
-    "FlowConfig.via_edges": "Edges the route must pass, in order.",
-    "FlowConfig.begin_s": "Start of the flow [s].",
-    "RandomTripsConfig.begin_s": "Time of the first departure [s].",
-    "RandomTripsConfig.end_s": "End of the departures [s]; default: the simulation's end.",
-    "RandomTripsConfig.min_distance_m": "Shortest distance between a trip's start and end [m].",
-    "PlatoonConfig.id": "Platoon name; its vehicles are `<id>.0` (leader), `<id>.1`, ...",
-    "PlatoonConfig.route": "The route every member drives.",
-    "PlatoonConfig.members": "Number of vehicles (1 to 100); member 0 leads.",
-    "PlatoonConfig.depart_s": "When the platoon is handed to SUMO for insertion [s].",
-    "PlatoonConfig.depart_lane": "Lane index on the first edge (0 = rightmost); default 0.",
-    "PlatoonConfig.vehicle": "Geometry, motion model and limits of the members.",
-    "PlatoonConfig.leader": "Controller of member 0.",
-    "PlatoonConfig.follower": "Controller of members 1 and up.",
-    "RouteConfig.edges": "The route as the full list of connected edges.",
-    "RouteConfig.from_edge": "Start edge; the fastest route to `to_edge` is computed.",
-    "RouteConfig.to_edge": "Destination edge (with `from_edge`).",
-    "RouteConfig.via_edges": "Edges the computed route must pass, in order.",
-    "VehicleConfig.length_m": "Length, bumper to bumper [m].",
-    "VehicleConfig.width_m": "Width [m].",
-    "VehicleConfig.wheelbase_m": "Rear axle to front axle [m] (bicycle model).",
-    "VehicleConfig.max_speed_mps": "Top speed [m/s].",
-    "VehicleConfig.max_accel_mps2": "Maximum acceleration [m/s²].",
-    "VehicleConfig.max_decel_mps2": "Maximum braking deceleration [m/s²].",
-    "VehicleConfig.max_yaw_rate_radps": "Largest yaw rate [rad/s].",
-    "VehicleConfig.max_steer_rad": "Front-wheel steering limit [rad] (bicycle model).",
-    "VehicleConfig.vclass": "SUMO vehicle class of the platoon's vehicle type.",
-    "ControllerConfig.params": "The controller's parameters (see Controllers below).",
-    "SensorConfig.preset": "A laser preset (see Laser presets below).",
-    "SensorConfig.overrides": "Laser fields replacing the preset's (see Laser presets below).",
-}
 
 INTRO = """\
 # Scenario files
@@ -271,7 +215,7 @@ def sections(cls: type, path: str = "") -> Iterator[Section]:
         key = f"{path}.{f.name}" if path else f.name
         default = _DEFAULT_OVERRIDES.get(key) or _default(f, tp)
         child = _item_dataclass(tp)
-        doc = docs.get(f.name) or _FALLBACK_DOCS.get(f"{cls.__name__}.{f.name}", "")
+        doc = docs.get(f.name, "")
         if child is not None:
             is_list = get_origin(tp) in (tuple, list)
             child_path = f"{key}[]" if is_list else key
@@ -398,22 +342,6 @@ def _preset_value(name: str, value: Any) -> str:
     return str(value)
 
 
-def fallback_report() -> tuple[list[str], list[str]]:
-    """Fields documented only by `_FALLBACK_DOCS`, and entries a docstring made redundant."""
-    used: list[str] = []
-    redundant: list[str] = []
-    known: set[str] = set()
-    for s in sections(Scenario):
-        docs = attribute_docs(s.cls)
-        for f in dataclasses.fields(s.cls):
-            key = f"{s.cls.__name__}.{f.name}"
-            known.add(key)
-            if key in _FALLBACK_DOCS:
-                (redundant if docs.get(f.name) else used).append(key)
-    redundant += [k for k in _FALLBACK_DOCS if k not in known]
-    return sorted(set(used)), sorted(set(redundant))
-
-
 # --------------------------------------------------------------------------- command line
 
 
@@ -441,18 +369,6 @@ def main(argv: list[str] | None = None) -> int:
     OUTPUT.parent.mkdir(parents=True, exist_ok=True)
     OUTPUT.write_text(text, encoding="utf-8")
     print(f"wrote {OUTPUT.relative_to(ROOT)}")
-    used, redundant = fallback_report()
-    if used:
-        print(
-            f"{len(used)} fields have no docstring (meaning taken from _FALLBACK_DOCS):",
-            file=sys.stderr,
-        )
-        print("  " + ", ".join(used), file=sys.stderr)
-    if redundant:
-        print(
-            "delete from _FALLBACK_DOCS (documented in the code, or gone): " + ", ".join(redundant),
-            file=sys.stderr,
-        )
     return 0
 
 

@@ -25,8 +25,9 @@ def scenario_with_laser() -> dict:
         },
         "platoons": [
             {"id": "ego", "route": {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]},
-             "depart_s": 4.0, "depart_lane": 0, "sensor": {"preset": "utm30lx"},
-             "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0}}}
+             "depart_s": 4.0, "depart_lane": 0,
+             "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0},
+                        "sensor": {"preset": "utm30lx"}}}
         ],
     }  # fmt: skip
 
@@ -97,7 +98,7 @@ def test_scan_command_without_sensor_explains_what_to_do(write_scenario, tmp_pat
     from platoon_sumo.cli import main
 
     data = scenario_with_laser()
-    del data["platoons"][0]["sensor"]
+    del data["platoons"][0]["leader"]["sensor"]
     code = main(["scan", str(write_scenario(data)), "--at", "10", "--out", str(tmp_path / "x.png")])
     assert code == 2
     err = capsys.readouterr().err
