@@ -17,12 +17,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from platoon_sumo.control import Command, Controller, Observation
-from platoon_sumo.geometry import footprints_from_front_bumper, overlapping_pairs
+from platoon_sumo.geometry import (
+    footprints_from_front_bumper,
+    overlapping_pairs,
+    rectangles_crossing_segments,
+)
 from platoon_sumo.path import RoutePath
+from platoon_sumo.platoon import bumper_gap_m, predecessor_ids, rays_on_target
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
 from platoon_sumo.sensors.raycast import scan_many
 from platoon_sumo.sumo.backend import SumoBackend
+from platoon_sumo.supervisor import EMERGENCY, supervise
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
 from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
 
@@ -44,9 +50,27 @@ class PlatoonVehicle:
     lateral_offset_m: float = 0.0
     accel_mps2: float = 0.0
     command: Command = field(default_factory=lambda: Command(0.0))
+    """What the controller asked for this step."""
+    executed: Command = field(default_factory=lambda: Command(0.0))
+    """What the supervisor let through (the vehicle model's input)."""
+    supervisor_state: str = ""
+    """"" when the command passed unchanged, else what the supervisor enforced."""
     signal: SignalAhead | None = None
     vehicle_ahead: VehicleAhead | None = None
     scan: LaserScan | None = None
+    predecessor_id: str | None = None
+    gap_to_predecessor_m: float | None = None
+    """Follower's front-bumper centre to predecessor's rear-bumper centre (ground truth)."""
+    predecessor_rays: int | None = None
+    """Rays of this step's scan that return from the predecessor (None: no scan)."""
+
+    @property
+    def platoon_id(self) -> str:
+        return self.plan.platoon_id
+
+    @property
+    def index(self) -> int:
+        return self.plan.index
 
     @property
     def id(self) -> str:
@@ -62,6 +86,10 @@ class PlatoonVehicle:
             float(self.state.x_m[0]) + self.front_offset_m * math.cos(yaw),
             float(self.state.y_m[0]) + self.front_offset_m * math.sin(yaw),
         )
+
+
+#: The other party of a collision with static geometry (walls, kerbs, buildings).
+WALL = "<wall>"
 
 
 @dataclass(frozen=True)
@@ -107,6 +135,7 @@ class RunCounters:
     red_light_violations: list[RedLightViolation] = field(default_factory=list)
     sumo_collisions: int = 0
     teleports: int = 0
+    emergency_brakings: int = 0
     platoon_arrived: list[str] = field(default_factory=list)
     platoon_departed: list[str] = field(default_factory=list)
     arrived_total: int = 0
@@ -142,6 +171,8 @@ class CoSimulation:
         self._sumo_contacts: set[tuple[str, str]] = set()
         self._last_scan_s: dict[str, float] = {}
         self.world: WorldSnapshot | None = None
+        self.rects: FloatArray = np.empty((0, 5))
+        """Footprints of `world`'s vehicles (ours from our exact model state)."""
 
     # ------------------------------------------------------------------ running
 
@@ -149,6 +180,7 @@ class CoSimulation:
         for hook in self.hooks:
             hook.on_start(self)
         self.world = self.backend.snapshot()
+        self.rects = self.footprints(self.world)
         while self.backend.time_s < self.end_s - 1e-9:
             self.step()
         for hook in self.hooks:
@@ -173,6 +205,8 @@ class CoSimulation:
         self._handle_departures(world)
         violations = self._update_route_progress(list(self.active.values()))
         vehicles = list(self.active.values())  # those that reached their route's end are gone
+        self.rects = self.footprints(world)
+        self._update_predecessors(vehicles, world)
         collisions = self._check_collisions(world)
         record = StepRecord(
             world.time_s, world, tuple(vehicles), tuple(collisions), tuple(violations)
@@ -256,7 +290,8 @@ class CoSimulation:
                 due.setdefault(laser, []).append(v)
         if not due:
             return
-        rects = self.footprints(world)
+        rects = self.rects
+        predecessors = predecessor_ids(vehicles)
         for laser, group in due.items():
             bumpers = np.array([v.front_bumper() for v in group])
             yaws = np.array([float(v.state.yaw_rad[0]) for v in group])
@@ -271,6 +306,12 @@ class CoSimulation:
                     laser, ranges[k], origins[k], float(headings[k]), world.time_s
                 )
                 self._last_scan_s[v.id] = world.time_s
+                pred = predecessors.get(v.id)
+                v.predecessor_rays = (
+                    rays_on_target(v.scan, laser, rects[world.index[pred]])
+                    if pred is not None and pred in world.index
+                    else 0
+                )
 
     def footprints(self, world: WorldSnapshot) -> FloatArray:
         """Rectangles of every vehicle; ours from our own (exact) model state."""
@@ -304,6 +345,10 @@ class CoSimulation:
                 scan=v.scan,
             )
             v.command = v.controller.step(obs)
+            v.executed, enforced = supervise(v.platoon.config.supervisor, obs, v.command)
+            if enforced == EMERGENCY and v.supervisor_state != EMERGENCY:
+                self.counters.emergency_brakings += 1
+            v.supervisor_state = enforced
         # Integrate per platoon: members share a model and limits, so one vectorised call.
         by_platoon: dict[str, list[PlatoonVehicle]] = {}
         for v in vehicles:
@@ -321,13 +366,13 @@ class CoSimulation:
             )
             yaw_rate = np.array(
                 [
-                    float(heading_to_yaw_rate(v.command.heading_rad, v.state.yaw_rad[0],
+                    float(heading_to_yaw_rate(v.executed.heading_rad, v.state.yaw_rad[0],
                                               self.dt_s, limits.max_yaw_rate_radps)[0])
-                    if v.command.heading_rad is not None else v.command.yaw_rate_radps
+                    if v.executed.heading_rad is not None else v.executed.yaw_rate_radps
                     for v in group
                 ]
             )  # fmt: skip
-            speed_cmd = np.array([v.command.speed_mps for v in group])
+            speed_cmd = np.array([v.executed.speed_mps for v in group])
             new = platoon.model().step(state, speed_cmd, yaw_rate, limits, self.dt_s)
             for k, v in enumerate(group):
                 v.accel_mps2 = (float(new.speed_mps[k]) - float(v.state.speed_mps[0])) / self.dt_s
@@ -376,15 +421,31 @@ class CoSimulation:
         vehicle = v.platoon.config.vehicle
         return max(20.0 * vehicle.length_m, vehicle.max_speed_mps**2 / vehicle.max_decel_mps2 * 2)
 
+    def _update_predecessors(self, vehicles: list[PlatoonVehicle], world: WorldSnapshot) -> None:
+        """Ground truth for metrics: each member's predecessor and the bumper gap to it."""
+        predecessors = predecessor_ids(vehicles)
+        for v in vehicles:
+            pred = predecessors[v.id]
+            v.predecessor_id = pred
+            v.gap_to_predecessor_m = None
+            if pred is not None and pred in world.index and v.id in world.index:
+                v.gap_to_predecessor_m = bumper_gap_m(
+                    self.rects[world.index[v.id]], self.rects[world.index[pred]]
+                )
+
     def _check_collisions(self, world: WorldSnapshot) -> list[Collision]:
-        """Footprint overlaps of pairs involving a platoon vehicle (SUMO's check is per lane)."""
-        if not self.active or len(world) < 2:
+        """Footprint overlaps of pairs involving a platoon vehicle (SUMO's check is per lane),
+        and platoon vehicles touching walls; each contact counts once, when it begins."""
+        if not self.active:
             self._overlapping = set()
             return []
-        rects = self.footprints(world)
+        rects = self.rects
         subjects = np.array([world.index[vid] for vid in self.active if vid in world.index])
         pairs = overlapping_pairs(rects, subjects) if len(subjects) else np.empty((0, 2), int)
         now = {tuple(sorted((world.ids[i], world.ids[j]))) for i, j in pairs}
+        if self.static_segments is not None and len(subjects):
+            hits = rectangles_crossing_segments(rects[subjects], self.static_segments)
+            now |= {(world.ids[subjects[i]], WALL) for i in np.unique(hits[:, 0])}
         new = [Collision(world.time_s, a, b) for a, b in sorted(now - self._overlapping)]
         self._overlapping = now
         self.counters.collisions.extend(new)

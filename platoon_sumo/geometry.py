@@ -241,3 +241,56 @@ def _subject_indices(subjects: ArrayLike, n: int) -> IntArray:
 
 def _floats(*values: ArrayLike) -> tuple[FloatArray, ...]:
     return tuple(np.asarray(v, dtype=np.float64) for v in values)
+
+
+def rectangles_crossing_segments(rects: ArrayLike, segments: ArrayLike) -> IntArray:
+    """(K, 2) pairs (rectangle index, segment index) where a segment enters a rectangle's
+    interior (touching its outline is not a crossing).
+
+    Each segment is clipped against each nearby rectangle in the rectangle's own frame
+    (Liang-Barsky); pairs are first culled by bounding boxes, so long lists of walls
+    and kerbs cost little.
+    """
+    r = as_rectangles(rects)
+    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
+    if r.shape[0] == 0 or seg.shape[0] == 0:
+        return np.empty((0, 2), dtype=np.int64)
+    reach = 0.5 * np.hypot(r[:, LENGTH], r[:, WIDTH])
+    lo = np.minimum(seg[:, 0:2], seg[:, 2:4])
+    hi = np.maximum(seg[:, 0:2], seg[:, 2:4])
+    centre = r[:, None, CX : CY + 1]
+    near = np.all(
+        (centre >= lo[None] - reach[:, None, None]) & (centre <= hi[None] + reach[:, None, None]),
+        axis=2,
+    )
+    ri, si = np.nonzero(near)
+    if ri.size == 0:
+        return np.empty((0, 2), dtype=np.int64)
+    c, s = np.cos(r[ri, YAW]), np.sin(r[ri, YAW])
+    ax, ay = seg[si, 0] - r[ri, CX], seg[si, 1] - r[ri, CY]
+    bx, by = seg[si, 2] - r[ri, CX], seg[si, 3] - r[ri, CY]
+    # segment in the rectangle frame: p(t) = a + t (b - a), t in [0, 1]
+    px, py = c * ax + s * ay, c * ay - s * ax
+    dx, dy = (c * bx + s * by) - px, (c * by - s * bx) - py
+    hl, hw = 0.5 * r[ri, LENGTH], 0.5 * r[ri, WIDTH]
+    t0 = np.zeros(ri.size)
+    t1 = np.ones(ri.size)
+    inside = np.ones(ri.size, dtype=bool)
+    for p0, d, half in ((px, dx, hl), (py, dy, hw)):
+        moving = np.abs(d) > 1e-15
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            ta = (-half - p0) / d
+            tb = (half - p0) / d
+        lo_t = np.where(moving, np.minimum(ta, tb), -np.inf)
+        hi_t = np.where(moving, np.maximum(ta, tb), np.inf)
+        inside &= moving | (np.abs(p0) < half)  # parallel: must lie strictly between the sides
+        t0 = np.maximum(t0, lo_t)
+        t1 = np.minimum(t1, hi_t)
+    # A piece of positive length strictly inside (touching gives t0 == t1 or a boundary line).
+    crossing = inside & ((t1 - t0) * np.hypot(dx, dy) > 1e-9)
+    if np.any(crossing):
+        mid = 0.5 * (t0 + t1)
+        mx, my = px + mid * dx, py + mid * dy
+        crossing &= (np.abs(mx) < hl) & (np.abs(my) < hw)
+    pairs = np.column_stack([ri[crossing], si[crossing]]).astype(np.int64)
+    return pairs

@@ -18,6 +18,11 @@ Columns of trajectories.csv (one row per platoon vehicle per step, after the ste
 | signal_tls, signal_state | | next traffic light on the route and its link state |
 | signal_distance_m | m | distance from the front bumper to that light's stop line |
 | ahead_id, ahead_gap_m | -, m | nearest vehicle ahead on the route lanes; bumper-to-bumper gap |
+| predecessor_id | | platoon member ahead (empty for the first member in the network) |
+| gap_to_predecessor_m | m | front-bumper centre to predecessor's rear-bumper centre (truth) |
+| desired_gap_m | m | the follower controller's spacing policy at its speed (if it has one) |
+| predecessor_rays | | rays of this step's scan returning from the predecessor (empty: no scan) |
+| supervisor | | what the supervisor enforced over the command: `signal`, `emergency`, or empty |
 """
 
 from __future__ import annotations
@@ -28,13 +33,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from platoon_sumo.cosim import CoSimulation, StepRecord
+    from platoon_sumo.cosim import CoSimulation, PlatoonVehicle, StepRecord
 
 TRAJECTORY_COLUMNS = (
     "time_s", "vehicle_id", "platoon_id", "member_index", "role", "x_m", "y_m", "yaw_rad",
     "speed_mps", "accel_mps2", "cmd_speed_mps", "cmd_yaw_rate_radps", "route_s_m",
     "lateral_offset_m", "lane_width_m", "lane_id", "signal_tls", "signal_state",
-    "signal_distance_m", "ahead_id", "ahead_gap_m",
+    "signal_distance_m", "ahead_id", "ahead_gap_m", "predecessor_id", "gap_to_predecessor_m",
+    "desired_gap_m", "predecessor_rays", "supervisor",
 )  # fmt: skip
 
 
@@ -69,6 +75,8 @@ class TrajectoryRecorder:
                     signal.tls_id if signal else "", signal.state if signal else "",
                     signal.distance_m if signal else "",
                     ahead.vehicle_id if ahead else "", ahead.gap_m if ahead else "",
+                    v.predecessor_id or "", _blank(v.gap_to_predecessor_m),
+                    _blank(desired_gap(v)), _blank(v.predecessor_rays), v.supervisor_state,
                 )
             )  # fmt: skip
         if len(self._rows) >= self.chunk_rows:
@@ -83,3 +91,15 @@ class TrajectoryRecorder:
 
     def on_end(self, sim: CoSimulation) -> None:
         self.flush()
+
+
+def desired_gap(v: PlatoonVehicle) -> float | None:
+    """The follower controller's spacing policy at the vehicle's speed, if it declares one."""
+    policy = getattr(v.controller, "desired_gap_m", None)
+    if v.predecessor_id is None or not callable(policy):
+        return None
+    return float(policy(float(v.state.speed_mps[0])))
+
+
+def _blank(value: float | int | None) -> float | int | str:
+    return "" if value is None else value

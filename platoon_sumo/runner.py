@@ -19,11 +19,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 import platoon_sumo
 from platoon_sumo.config_loader import FieldError
 from platoon_sumo.cosim import CoSimulation, RunCounters, StepHook
 from platoon_sumo.errors import ScenarioError
+from platoon_sumo.metrics import follower_metrics
 from platoon_sumo.recorder import TrajectoryRecorder
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
@@ -133,6 +135,9 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         backend.close()
     wall_s = time.perf_counter() - wall_start
     summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
+    if recorder is not None:
+        trajectories = pd.read_csv(directory / "trajectories.csv")
+        summary["followers"] = follower_metrics(trajectories)
     with (directory / "summary.json").open("w") as f:
         json.dump(summary, f, indent=2)
     return RunResult(directory, summary)
@@ -178,6 +183,7 @@ def _summary(
         "collision_events": [dataclasses.asdict(c) for c in counters.collisions],
         "sumo_collisions": counters.sumo_collisions,
         "teleports": counters.teleports,
+        "emergency_brakings": counters.emergency_brakings,
         "red_light_violations": len(counters.red_light_violations),
         "red_light_events": [dataclasses.asdict(v) for v in counters.red_light_violations],
     }

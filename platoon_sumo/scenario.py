@@ -26,6 +26,7 @@ from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
 from platoon_sumo.sumo.network import Network, RouteError
+from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
 
 VEHICLE_CLASSES = (
@@ -342,6 +343,8 @@ class PlatoonConfig:
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
     """Geometry, motion model and limits of the members."""
+    supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
+    """Traffic rules and last-resort braking applied to every member's commands."""
     leader: RoleConfig = RoleConfig()
     """Controller of member 0."""
     follower: RoleConfig = RoleConfig()

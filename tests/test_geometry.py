@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from shapely.geometry import MultiPoint, Point, Polygon
+from shapely.geometry import LineString, MultiPoint, Point, Polygon
 
 from platoon_sumo.geometry import (
     centre_to_front_bumper,
@@ -18,6 +18,7 @@ from platoon_sumo.geometry import (
     overlapping_pairs,
     penetration_depths,
     rectangle_corners,
+    rectangles_crossing_segments,
     rectangles_overlap,
     sumo_angle_deg_to_yaw,
     wrap_angle,
@@ -285,3 +286,40 @@ def test_overlapping_pairs_city_scale_is_fast_and_exact() -> None:
     np.testing.assert_array_equal(got, brute_force_pairs(rects, mask, 0.0))
     assert len(got) > 0
     assert elapsed_s < 0.5
+
+
+# ---------------------------------------------------------------- rectangles vs segments
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    rect=st.tuples(
+        st.floats(-5, 5), st.floats(-5, 5), st.floats(-4, 4), st.floats(0.3, 5), st.floats(0.2, 3)
+    ),
+    seg=st.tuples(st.floats(-9, 9), st.floats(-9, 9), st.floats(-9, 9), st.floats(-9, 9)),
+)
+def test_rectangles_crossing_segments_matches_shapely(rect, seg):
+    corners = rectangle_corners(np.array([rect]))[0]
+    poly = Polygon(corners)
+    line = LineString([seg[:2], seg[2:]])
+    inner = poly.intersection(line).length
+    if 1e-10 < inner < 1e-6:
+        return  # grazing or a near-point segment: below what either side resolves
+    expected = inner > 1e-9 and not poly.exterior.buffer(1e-9).contains(line)
+    pairs = rectangles_crossing_segments(np.array([rect]), np.array([seg]))
+    assert (len(pairs) == 1) == expected
+
+
+def test_rectangles_crossing_segments_known_cases():
+    box = np.array([[0.0, 0.0, 0.0, 4.0, 2.0]])  # x in [-2, 2], y in [-1, 1]
+    segments = np.array(
+        [
+            [-5.0, 0.0, 5.0, 0.0],  # straight through
+            [0.0, 0.0, 0.5, 0.5],  # wholly inside
+            [-5.0, 1.0, 5.0, 1.0],  # along the top side: touching only
+            [3.0, -3.0, 3.0, 3.0],  # outside
+            [2.0, 0.0, 4.0, 0.0],  # touching the front side at one point
+        ]
+    )
+    pairs = rectangles_crossing_segments(box, segments)
+    assert pairs.tolist() == [[0, 0], [0, 1]]

@@ -16,6 +16,7 @@ import numpy as np
 
 from platoon_sumo.config_loader import require
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
+from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
 from platoon_sumo.path import RoutePath
 
 
@@ -131,29 +132,18 @@ class RouteFollowing:
         return float(min(allowed.min(initial=v_max), obs.limits.max_speed_mps))
 
     def _following_speed(self, obs: Observation) -> float:
-        """Krauss-style safe speed: can still stop behind the vehicle ahead if it brakes."""
+        """Keep a safe distance to the vehicle ahead (braking at comfort decel suffices)."""
         ahead = obs.vehicle_ahead
         if ahead is None:
             return math.inf
-        b, tau = self.params.comfort_decel_mps2, self.params.time_gap_s
-        room = ahead.gap_m - self.params.standstill_gap_m
-        if room <= 0:
-            return 0.0
-        return -b * tau + math.sqrt((b * tau) ** 2 + ahead.speed_mps**2 + 2 * b * room)
+        p = self.params
+        return safe_following_speed(
+            ahead.gap_m, ahead.speed_mps, p.standstill_gap_m, p.comfort_decel_mps2, p.time_gap_s
+        )
 
     def _signal_speed(self, obs: Observation) -> float:
-        signal = obs.signal
-        if signal is None or not signal.is_stop:
-            return math.inf
-        d = signal.distance_m - self.params.stop_margin_m
-        v = obs.speed_mps
-        if d <= 0.0:
-            # Past the planned stop point: on yellow drive on; on red hold (or creep) at the line.
-            return math.inf if signal.state == "y" else 0.0
-        needed = v * v / (2 * d)
-        if needed <= self.params.comfort_decel_mps2:
-            return math.sqrt(2 * self.params.comfort_decel_mps2 * d)
-        if signal.state == "y" and needed > self.params.yellow_max_decel_mps2:
-            return math.inf
-        # Late (the light just changed): brake just hard enough to stop at the line.
-        return max(v - needed * obs.dt_s, 0.0)
+        p = self.params
+        return signal_speed_limit(
+            obs.signal, obs.speed_mps, obs.dt_s, p.comfort_decel_mps2, p.yellow_max_decel_mps2,
+            p.stop_margin_m,
+        )  # fmt: skip

@@ -1,0 +1,66 @@
+"""The supervisor: traffic rules and a last-resort brake between controller and vehicle.
+
+Every platoon vehicle's command passes through it, whatever the controller, so a
+laser-only follower that trails its predecessor through a changing light still stops
+at red, and no controller drives into a vehicle the loop knows is there. It only ever
+lowers the commanded speed; each intervention is named in the trajectory table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from platoon_sumo.config_loader import require
+from platoon_sumo.control.base import Command, Observation
+from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    signals: bool = True
+    """Stop for red and yellow lights when the stop is possible."""
+    comfort_decel_mps2: float = 2.5
+    """Deceleration used to stop at a light [m/s²]."""
+    yellow_max_decel_mps2: float = 4.0
+    """On yellow, stop only if it takes at most this deceleration [m/s²]."""
+    stop_margin_m: float = 0.5
+    """Front bumper stops this far before the stop line [m]."""
+    emergency_braking: bool = True
+    """Brake at full capability when the vehicle ahead (SUMO's ground truth) is too close."""
+    emergency_gap_m: float = 0.5
+    """Standstill gap the emergency brake protects [m]; robots want a few centimetres."""
+
+    def __post_init__(self) -> None:
+        for key in ("comfort_decel_mps2", "yellow_max_decel_mps2"):
+            require(getattr(self, key) > 0, key, "must be > 0")
+        for key in ("stop_margin_m", "emergency_gap_m"):
+            require(getattr(self, key) >= 0, key, "must be >= 0")
+
+
+#: Supervisor states recorded per step ("" when the controller's command passed unchanged).
+SIGNAL, EMERGENCY = "signal", "emergency"
+
+
+def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:
+    """The command to execute and what (if anything) the supervisor enforced."""
+    speed, state = command.speed_mps, ""
+    if config.signals:
+        limit = signal_speed_limit(
+            obs.signal, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
+            config.yellow_max_decel_mps2, config.stop_margin_m,
+        )  # fmt: skip
+        if speed > limit:
+            speed, state = limit, SIGNAL
+    if config.emergency_braking and obs.vehicle_ahead is not None:
+        ahead = obs.vehicle_ahead
+        # Reaction time of one step: the brake acts on the next command.
+        limit = safe_following_speed(
+            ahead.gap_m, ahead.speed_mps, config.emergency_gap_m, obs.limits.max_decel_mps2,
+            obs.dt_s,
+        )  # fmt: skip
+        if speed > limit:
+            speed, state = limit, EMERGENCY
+    if not state:
+        return command, ""
+    return dataclasses.replace(command, speed_mps=max(speed, 0.0)), state
