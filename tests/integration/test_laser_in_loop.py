@@ -103,3 +103,44 @@ def test_scan_command_without_sensor_explains_what_to_do(write_scenario, tmp_pat
     assert code == 2
     err = capsys.readouterr().err
     assert "no laser scan" in err and "give the platoon a sensor" in err
+
+
+class ScanStamps:
+    def __init__(self) -> None:
+        self.stamps: list[float] = []
+        self.ranges: list[np.ndarray] = []
+
+    def on_start(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_end(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+        for v in record.vehicles:
+            if v.scan is not None and (not self.stamps or self.stamps[-1] != v.scan.stamp_s):
+                self.stamps.append(v.scan.stamp_s)
+                self.ranges.append(v.scan.ranges)
+
+
+def test_scans_come_at_the_sensor_rate_and_noise_is_seeded(write_scenario, tmp_path):
+    data = scenario_with_laser()
+    data["simulation"]["end_s"] = 12.0
+    data["platoons"][0]["leader"]["sensor"]["overrides"] = {"rate_hz": 5.0, "noise_std_m": 0.02}
+    path = write_scenario(data)
+    first, again, other_seed = ScanStamps(), ScanStamps(), ScanStamps()
+    run(load_plan(path), tmp_path / "a", [first])
+    assert len(first.stamps) > 20
+    assert np.allclose(np.diff(first.stamps), 0.2)  # 5 Hz with 0.1 s steps: every 2nd step
+    run(load_plan(path), tmp_path / "b", [again])
+    run(load_plan(path, seed=99), tmp_path / "c", [other_seed])
+    same = [
+        np.array_equal(a, b, equal_nan=True)
+        for a, b in zip(first.ranges, again.ranges, strict=True)
+    ]
+    assert all(same)  # the same seed gives the same noisy scans
+    differ = [
+        not np.array_equal(a, b, equal_nan=True)
+        for a, b in zip(first.ranges, other_seed.ranges, strict=False)
+    ]
+    assert any(differ)  # and the noise is really there
