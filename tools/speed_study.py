@@ -34,10 +34,22 @@ FOLLOWERS: dict[str, dict[str, Any]] = {
     "paper_follower": {"type": "paper_follower"},
     "laser_follower": {
         "type": "laser_follower",
-        "params": {
+        "params": {  # robot scale, as documented in platoon_sumo/control/laser_follower.py
             "standstill_gap_m": 0.35,
             "time_gap_s": 0.6,
-            "robot_scale": True,
+            "min_gap_m": 0.15,
+            "comfort_decel_mps2": 0.5,
+            "lookahead_min_m": 0.3,
+            "trail_spacing_m": 0.02,
+            "perception": {"break_abs_m": 0.03, "corner_abs_m": 0.01},
+            "tracker": {
+                "accel_noise_mps2": 1.0,
+                "meas_noise_m": 0.01,
+                "start_range_max_m": 1.5,
+                "start_lateral_m": 0.2,
+                "init_speed_std_mps": 0.3,
+            },
+            "fallback": {"lookahead_min_m": 0.3, "comfort_decel_mps2": 0.5},
         },
     },
 }
