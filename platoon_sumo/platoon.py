@@ -68,5 +68,5 @@ def rays_on_target(scan: LaserScan, config: LaserConfig, target: NDArray[np.floa
         (scan.origin_x_m, scan.origin_y_m), scan.heading_rad, config, rectangles=target[None, :]
     )
     tolerance = max(4.0 * config.noise_std_m, 1e-6)
-    visible = np.isfinite(alone) & (np.abs(scan.ranges - alone) <= tolerance)
-    return int(np.count_nonzero(visible))
+    hit = np.isfinite(alone)
+    return int(np.count_nonzero(np.abs(scan.ranges[hit] - alone[hit]) <= tolerance))
