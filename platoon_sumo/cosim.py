@@ -30,7 +30,7 @@ from platoon_sumo.sensors.raycast import scan_many
 from platoon_sumo.sumo.backend import SumoBackend
 from platoon_sumo.supervisor import EMERGENCY, supervise
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
-from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
+from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 FloatArray = NDArray[np.float64]
 
@@ -56,6 +56,7 @@ class PlatoonVehicle:
     supervisor_state: str = ""
     """"" when the command passed unchanged, else what the supervisor enforced."""
     signal: SignalAhead | None = None
+    link_ahead: LinkAhead | None = None
     vehicle_ahead: VehicleAhead | None = None
     scan: LaserScan | None = None
     predecessor_id: str | None = None
@@ -341,6 +342,7 @@ class CoSimulation:
                 limits=cfg.limits(),
                 path=v.path,
                 signal=v.signal,
+                link_ahead=v.link_ahead,
                 vehicle_ahead=v.vehicle_ahead,
                 scan=v.scan,
             )
@@ -397,6 +399,7 @@ class CoSimulation:
             v.route_s_m, v.lateral_offset_m = point.s_m, point.lateral_offset_m
             previous, v.signal = v.signal, self.backend.next_signal(v.id)
             v.vehicle_ahead = self.backend.vehicle_ahead(v.id, self._ahead_horizon_m(v))
+            v.link_ahead = self.backend.link_ahead(v.id)
             if (
                 previous is not None
                 and previous.state in ("r", "u")

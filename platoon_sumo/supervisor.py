@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from platoon_sumo.config_loader import require
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
+from platoon_sumo.world import SignalAhead
 
 
 @dataclass(frozen=True)
@@ -26,6 +27,9 @@ class SupervisorConfig:
     """On yellow, stop only if it takes at most this deceleration [m/s²]."""
     stop_margin_m: float = 0.5
     """Front bumper stops this far before the stop line [m]."""
+    yield_at_junctions: bool = True
+    """On a minor approach, stop before the junction while SUMO sees it closed or contested
+    (SUMO's own gap acceptance for this vehicle)."""
     emergency_braking: bool = True
     """Brake at full capability when the vehicle ahead (SUMO's ground truth) is too close."""
     emergency_gap_m: float = 0.5
@@ -39,7 +43,7 @@ class SupervisorConfig:
 
 
 #: Supervisor states recorded per step ("" when the controller's command passed unchanged).
-SIGNAL, EMERGENCY = "signal", "emergency"
+SIGNAL, YIELD, EMERGENCY = "signal", "yield", "emergency"
 
 
 def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:
@@ -52,6 +56,16 @@ def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> t
         )  # fmt: skip
         if speed > limit:
             speed, state = limit, SIGNAL
+    link = obs.link_ahead
+    if config.yield_at_junctions and link is not None and link.must_yield:
+        # Held like a red light at the end of the lane until SUMO opens the link.
+        stop = SignalAhead("junction", -1, "r", link.distance_m)
+        limit = signal_speed_limit(
+            stop, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
+            config.yellow_max_decel_mps2, config.stop_margin_m,
+        )  # fmt: skip
+        if speed > limit:
+            speed, state = limit, YIELD
     if config.emergency_braking and obs.vehicle_ahead is not None:
         ahead = obs.vehicle_ahead
         # Reaction time of one step: the brake acts on the next command.

@@ -52,3 +52,25 @@ class VehicleAhead:
     vehicle_id: str
     gap_m: float
     speed_mps: float
+
+
+@dataclass(frozen=True)
+class LinkAhead:
+    """The junction link at the end of a vehicle's current lane, as SUMO judges it.
+
+    `is_open` and `has_foe` are SUMO's own right-of-way evaluation for this vehicle's
+    approach (its gap acceptance against the foes it knows), so yielding with them treats
+    platoon vehicles like SUMO's drivers."""
+
+    state: str
+    """SUMO link state: `M` major, `m` minor, `=` equal, `s` stop, `w` all-way stop, ..."""
+    has_priority: bool
+    is_open: bool
+    has_foe: bool
+    distance_m: float
+    """From the front bumper to the end of the lane (where the link starts)."""
+
+    @property
+    def must_yield(self) -> bool:
+        """A minor approach that SUMO sees closed or contested."""
+        return not self.has_priority and (not self.is_open or self.has_foe)

@@ -13,7 +13,7 @@ from platoon_sumo.path import RoutePath
 from platoon_sumo.registry import Registry
 from platoon_sumo.sensors.laser import LaserScan
 from platoon_sumo.vehicles import MotionLimits
-from platoon_sumo.world import SignalAhead, VehicleAhead
+from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,8 @@ class Observation:
     limits: MotionLimits
     path: RoutePath
     signal: SignalAhead | None = None
+    link_ahead: LinkAhead | None = None
+    """The junction link at the end of the current lane with SUMO's right-of-way view."""
     vehicle_ahead: VehicleAhead | None = None
     """Nearest vehicle ahead on the route lanes (the traffic picture a car's ADAS has);
     laser-only followers ignore it and use `scan`."""

@@ -230,8 +230,9 @@ def find_predecessor(
             continue  # background (no return) or a run touching it without a step
         if not fov_edges and (a == 0 or b == n - 1):
             continue  # an end of the run is the end of the field of view, not a step
-        x1, y1 = r[a] * math.cos(angles[a]), r[a] * math.sin(angles[a])
-        x2, y2 = r[b] * math.cos(angles[b]), r[b] * math.sin(angles[b])
+        ra, rb, ta, tb = float(r[a]), float(r[b]), float(angles[a]), float(angles[b])
+        x1, y1 = ra * math.cos(ta), ra * math.sin(ta)
+        x2, y2 = rb * math.cos(tb), rb * math.sin(tb)
         width = math.hypot(x2 - x1, y2 - y1)
         if not min_width_m <= width <= max_width_m:
             continue

@@ -19,7 +19,7 @@ import sumo
 from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
-from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
+from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -254,6 +254,19 @@ class SumoBackend:
             return None
         tls_id, link_index, distance, state = tls[0]
         return SignalAhead(str(tls_id), int(link_index), str(state), float(distance))
+
+    def link_ahead(self, vehicle_id: str) -> LinkAhead | None:
+        """The link at the end of the vehicle's lane (None inside a junction or at route end)."""
+        veh = libsumo.vehicle
+        lane = veh.getLaneID(vehicle_id)
+        if not lane or lane.startswith(":"):
+            return None
+        links = veh.getNextLinks(vehicle_id)
+        if not links:
+            return None
+        _, has_prio, is_open, has_foe, _, state, _, _ = links[0]
+        remaining = libsumo.lane.getLength(lane) - veh.getLanePosition(vehicle_id)
+        return LinkAhead(str(state), bool(has_prio), bool(is_open), bool(has_foe), remaining)
 
     def lane_position_m(self, vehicle_id: str) -> float:
         return float(libsumo.vehicle.getLanePosition(vehicle_id))

@@ -29,6 +29,7 @@ def test_platoon_keeps_formation_over_a_full_lap_without_collisions(paper_run):
     # every robot, the last one included, drove at least one full lap (four corner turns)
     assert traj.groupby("vehicle_id")["route_s_m"].max().min() > lap_m
     assert summary["collisions"] == 0  # with each other, with walls and with any vehicle
+    assert summary["emergency_brakings"] == 0  # the laser-only algorithms did it alone
     followers = summary["followers"]["robots"]
     assert sorted(followers) == ["robots.1", "robots.2", "robots.3", "robots.4"]
     for vid, m in followers.items():

@@ -1,0 +1,70 @@
+"""A platoon vehicle on a minor road yields to SUMO cars with priority."""
+
+from __future__ import annotations
+
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from platoon_sumo.runner import load_plan, run
+from platoon_sumo.sumo.backend import sumo_binary
+
+NODES = """<nodes>
+  <node id="W" x="-300" y="0"/> <node id="E" x="300" y="0"/>
+  <node id="S" x="0" y="-300"/> <node id="N" x="0" y="300"/>
+  <node id="C" x="0" y="0" type="priority"/>
+</nodes>"""
+EDGES = """<edges>
+  <edge id="WC" from="W" to="C" priority="3" numLanes="1" speed="13.89"/>
+  <edge id="CE" from="C" to="E" priority="3" numLanes="1" speed="13.89"/>
+  <edge id="SC" from="S" to="C" priority="1" numLanes="1" speed="13.89"/>
+  <edge id="CN" from="C" to="N" priority="1" numLanes="1" speed="13.89"/>
+</edges>"""
+
+
+@pytest.fixture(scope="module")
+def priority_crossing(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An unsignalised crossing: main road W-E has priority over the minor road S-N."""
+    d = tmp_path_factory.mktemp("crossing")
+    (d / "x.nod.xml").write_text(NODES)
+    (d / "x.edg.xml").write_text(EDGES)
+    net = d / "x.net.xml"
+    subprocess.run(
+        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
+         "-o", str(net), "--no-turnarounds"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return net
+
+
+def test_platoon_vehicle_yields_to_priority_traffic(priority_crossing, write_scenario, tmp_path):
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 90.0, "seed": 1},
+        "network": {"net_file": str(priority_crossing)},
+        "traffic": {
+            "vehicle_types": [{"id": "h", "sigma": 0.0}],
+            "flows": [{"from_edge": "WC", "to_edge": "CE", "vehs_per_hour": 2400,
+                       "begin_s": 0.0, "end_s": 50.0, "type": "h"}],
+        },
+        "platoons": [{"id": "ego", "route": {"edges": ["SC", "CN"]}, "depart_s": 5.0}],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = (out / "summary.json").read_text()
+    traj = pd.read_csv(out / "trajectories.csv")
+    trips = pd.read_csv(out / "tripinfo.csv", sep=";")
+
+    assert '"collisions": 0' in summary
+    waiting = traj[(traj["supervisor"] == "yield") & (traj["speed_mps"] < 0.01)]
+    assert len(waiting) > 20, "the ego stopped and waited at the minor approach"
+    assert waiting["lane_id"].eq("SC_0").all()
+    entered_s = traj.loc[traj["lane_id"].str.startswith(":C"), "time_s"].min()
+    # While it waited, SUMO cars with priority crossed the junction in front of it.
+    passed = trips[(trips["tripinfo_depart"] < entered_s - 15) & (trips["tripinfo_id"] != "ego.0")]
+    assert len(passed) >= 3
+    assert trips.loc[trips["tripinfo_id"] == "ego.0", "tripinfo_arrival"].notna().all()
+    # and no SUMO driver had to brake hard because of the platoon vehicle
+    safety = ET.parse(out / "sumo_statistics.xml").getroot().find("safety")
+    assert safety is not None and safety.get("emergencyBraking") == "0"
