@@ -23,7 +23,7 @@ from platoon_sumo.geometry import (
     rectangles_crossing_segments,
 )
 from platoon_sumo.path import RoutePath
-from platoon_sumo.platoon import bumper_gap_m, predecessor_ids, rays_on_target
+from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids, rays_on_target
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
 from platoon_sumo.sensors.raycast import scan_many
@@ -170,6 +170,9 @@ class CoSimulation:
         self._paths: dict[tuple[str, ...], RoutePath] = {}
         self._overlapping: set[tuple[str, ...]] = set()
         self._sumo_contacts: set[tuple[str, str]] = set()
+        self._linked: dict[str, bool] = {}
+        self.links = LinkMonitor()
+        """Splits, re-formations and cut-ins of every platoon."""
         self._last_scan_s: dict[str, float] = {}
         self.world: WorldSnapshot | None = None
         self.rects: FloatArray = np.empty((0, 5))
@@ -208,6 +211,7 @@ class CoSimulation:
         vehicles = list(self.active.values())  # those that reached their route's end are gone
         self.rects = self.footprints(world)
         self._update_predecessors(vehicles, world)
+        self._update_links(vehicles, world.time_s)
         collisions = self._check_collisions(world)
         record = StepRecord(
             world.time_s, world, tuple(vehicles), tuple(collisions), tuple(violations)
@@ -435,6 +439,30 @@ class CoSimulation:
                 v.gap_to_predecessor_m = bumper_gap_m(
                     self.rects[world.index[v.id]], self.rects[world.index[pred]]
                 )
+
+    def _update_links(self, vehicles: list[PlatoonVehicle], time_s: float) -> None:
+        """Splits, re-formations and cut-ins from what each follower perceives."""
+        for v in vehicles:
+            pred = v.predecessor_id
+            if pred is None:
+                continue
+            if v.plan.laser is not None:
+                if v.predecessor_rays is not None:  # keep the last verdict between scans
+                    self._linked[v.id] = v.predecessor_rays > 0
+            else:
+                gap = v.gap_to_predecessor_m
+                self._linked[v.id] = gap is not None and gap <= v.platoon.config.split_gap_m
+            ahead = v.vehicle_ahead
+            intruder = None
+            if (
+                ahead is not None
+                and not ahead.vehicle_id.startswith(v.platoon_id + ".")
+                and (v.gap_to_predecessor_m is None or ahead.gap_m < v.gap_to_predecessor_m)
+            ):
+                intruder = ahead.vehicle_id
+            self.links.observe(
+                time_s, v.platoon_id, v.id, pred, self._linked.get(v.id, False), intruder
+            )
 
     def _check_collisions(self, world: WorldSnapshot) -> list[Collision]:
         """Footprint overlaps of pairs involving a platoon vehicle (SUMO's check is per lane),

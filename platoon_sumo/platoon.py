@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -70,3 +71,72 @@ def rays_on_target(scan: LaserScan, config: LaserConfig, target: NDArray[np.floa
     tolerance = max(4.0 * config.noise_std_m, 1e-6)
     hit = np.isfinite(alone)
     return int(np.count_nonzero(np.abs(scan.ranges[hit] - alone[hit]) <= tolerance))
+
+
+@dataclass(frozen=True)
+class PlatoonEvent:
+    """A change in a platoon's structure, for the run summary."""
+
+    time_s: float
+    platoon_id: str
+    follower_id: str
+    kind: str
+    """`split`, `reformation` or `cut_in`."""
+    other_id: str
+    """The predecessor (split, re-formation) or the vehicle that cut in."""
+
+
+@dataclass
+class _LinkState:
+    linked: bool = False
+    since_s: float = 0.0
+    split: bool = False
+    ever_linked: bool = False
+    intruder: str | None = None
+
+
+class LinkMonitor:
+    """Turns per-step link observations into split / re-formation / cut-in events.
+
+    A follower is linked while it perceives its predecessor. Losing it for `hold_s`
+    counts one split; perceiving it again for `hold_s` after a split counts one
+    re-formation (the first link at start-up is formation, not re-formation). A vehicle
+    from outside the platoon that becomes the nearest vehicle ahead of a follower,
+    closer than its predecessor, counts one cut-in.
+    """
+
+    def __init__(self, hold_s: float = 1.0):
+        self.hold_s = hold_s
+        self._state: dict[str, _LinkState] = {}
+        self.events: list[PlatoonEvent] = []
+
+    def observe(
+        self,
+        time_s: float,
+        platoon_id: str,
+        follower_id: str,
+        predecessor_id: str,
+        linked: bool,
+        intruder_id: str | None,
+    ) -> list[PlatoonEvent]:
+        s = self._state.setdefault(follower_id, _LinkState(since_s=time_s))
+        new: list[PlatoonEvent] = []
+        if linked != s.linked:
+            s.linked, s.since_s = linked, time_s
+        held = time_s - s.since_s >= self.hold_s - 1e-9
+        if s.linked and held and not s.ever_linked:
+            s.ever_linked = True
+        elif s.linked and held and s.split:
+            s.split = False
+            new.append(PlatoonEvent(time_s, platoon_id, follower_id, "reformation", predecessor_id))
+        elif not s.linked and held and s.ever_linked and not s.split:
+            s.split = True
+            new.append(PlatoonEvent(time_s, platoon_id, follower_id, "split", predecessor_id))
+        if intruder_id is not None and intruder_id != s.intruder:
+            new.append(PlatoonEvent(time_s, platoon_id, follower_id, "cut_in", intruder_id))
+        s.intruder = intruder_id
+        self.events.extend(new)
+        return new
+
+    def forget(self, follower_id: str) -> None:
+        self._state.pop(follower_id, None)

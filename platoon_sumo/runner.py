@@ -25,8 +25,18 @@ import platoon_sumo
 from platoon_sumo.config_loader import FieldError
 from platoon_sumo.cosim import CoSimulation, RunCounters, StepHook
 from platoon_sumo.errors import ScenarioError
-from platoon_sumo.metrics import follower_metrics
-from platoon_sumo.recorder import TrajectoryRecorder
+from platoon_sumo.metrics import RunStats
+from platoon_sumo.metrics.sumo_outputs import (
+    EDGEDATA_FILE,
+    SUMO_SUMMARY_FILE,
+    read_run_outputs,
+    sumo_output_args,
+    traffic_effect,
+    write_edgedata_additional,
+)
+from platoon_sumo.metrics.tables import by_id, overall, summary_tables, write_table
+from platoon_sumo.platoon import PlatoonEvent
+from platoon_sumo.recorder import ScanSnapshot, TrajectoryRecorder
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
 from platoon_sumo.sumo.shapes import read_wall_segments
@@ -34,8 +44,9 @@ from platoon_sumo.traffic import write_traffic_inputs
 
 #: Everything a run writes at the top of its folder; removed first so nothing stale remains.
 OUTPUT_FILES = (
-    "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "tripinfo.csv",
-    "sumo_statistics.xml",
+    "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
+    "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
+    EDGEDATA_FILE, "scan_snapshot.npz",
 )  # fmt: skip
 
 
@@ -92,22 +103,33 @@ def run(
 def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult:
     sc = plan.scenario
     generated = write_traffic_inputs(plan, directory / "inputs")
+    out = sc.outputs
+    extra_additional: tuple[str, ...] = ()
+    if out.sumo_outputs:
+        edge_add = write_edgedata_additional(directory / "inputs", directory, out.edgedata_period_s)
+        extra_additional = (str(edge_add),)
     options = SumoOptions(
         net_file=str(plan.net_file),
         step_s=sc.simulation.step_s,
         seed=sc.simulation.seed,
         begin_s=sc.simulation.begin_s,
         route_files=tuple(str(p) for p in (*plan.route_files, *generated)),
-        additional_files=tuple(str(p) for p in plan.additional_files),
+        additional_files=(*(str(p) for p in plan.additional_files), *extra_additional),
         lateral_resolution_m=sc.simulation.lateral_resolution_m,
         tripinfo_file=str(directory / "tripinfo.csv") if sc.outputs.tripinfo else None,
         statistics_file=str(directory / "sumo_statistics.xml"),
+        extra_args=sumo_output_args(directory) if out.sumo_outputs else (),
     )
-    all_hooks: list[StepHook] = []
-    recorder = None
-    if sc.outputs.trajectories:
-        recorder = TrajectoryRecorder(directory / "trajectories.csv", sc.outputs.chunk_rows)
-        all_hooks.append(recorder)
+    stats = RunStats({p.config.id: len(p.members) for p in plan.platoons}, out.metrics_start_s)
+    recorder = TrajectoryRecorder(
+        directory / f"trajectories.{out.format}", out.chunk_rows, out.format, stats,
+        write=out.trajectories,
+    )  # fmt: skip
+    all_hooks: list[StepHook] = [recorder]
+    snapshot = None
+    if any(m.laser is not None for p in plan.platoons for m in p.members):
+        snapshot = ScanSnapshot(out.scan_snapshot_s)
+        all_hooks.append(snapshot)
     all_hooks.extend(hooks)
     walls = read_wall_segments(plan.additional_files)
     if sc.network.kerbs:
@@ -135,9 +157,20 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         backend.close()
     wall_s = time.perf_counter() - wall_start
     summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
-    if recorder is not None:
-        trajectories = pd.read_csv(directory / "trajectories.csv")
-        summary["followers"] = follower_metrics(trajectories)
+    summary.update(_platoon_events(sim.links.events))
+    summary["followers"] = stats.followers()
+    trips, sumo_summary, edgedata = read_run_outputs(directory)
+    links = getattr(sim, "links", None)
+    vehicles, platoons = summary_tables(stats, trips, getattr(links, "events", None))
+    write_table(directory / "vehicles.csv", vehicles)
+    write_table(directory / "platoons.csv", platoons)
+    summary["platoons"] = by_id(platoons, "platoon_id")
+    summary["overall"] = overall(platoons)
+    platoon_ids = [m.vehicle_id for p in plan.platoons for m in p.members]
+    route_edges = sorted({e for p in plan.platoons for e in p.edges})
+    summary["traffic"] = traffic_effect(trips, platoon_ids, sumo_summary, edgedata, route_edges)
+    if snapshot is not None:
+        snapshot.save(directory / "scan_snapshot.npz")
     with (directory / "summary.json").open("w") as f:
         json.dump(summary, f, indent=2)
     return RunResult(directory, summary)
@@ -159,11 +192,15 @@ def _summary(
         "scenario_file": str(plan.source.path),
         "scenario_sha256": plan.source.sha256,
         "seed": sc.simulation.seed,
+        "network_file": str(plan.net_file),
+        "trajectory_format": sc.outputs.format if sc.outputs.trajectories else None,
+        "metrics_start_s": sc.outputs.metrics_start_s,
         "versions": {
             "platoon_sumo": platoon_sumo.__version__,
             "sumo": sumo_version(),
             "python": platform.python_version(),
             "numpy": np.__version__,
+            "pandas": pd.__version__,
         },
         "simulated_s": sim_s,
         "wall_clock_s": round(wall_s, 3),
@@ -186,4 +223,13 @@ def _summary(
         "emergency_brakings": counters.emergency_brakings,
         "red_light_violations": len(counters.red_light_violations),
         "red_light_events": [dataclasses.asdict(v) for v in counters.red_light_violations],
+    }
+
+
+def _platoon_events(events: list[PlatoonEvent]) -> dict[str, Any]:
+    """Counts of splits, re-formations and cut-ins, and the events themselves."""
+    kinds = ("split", "reformation", "cut_in")
+    return {
+        "platoon_events": {k + "s": sum(e.kind == k for e in events) for k in kinds},
+        "platoon_event_log": [dataclasses.asdict(e) for e in events],
     }

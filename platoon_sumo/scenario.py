@@ -343,6 +343,9 @@ class PlatoonConfig:
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
     """Geometry, motion model and limits of the members."""
+    split_gap_m: float = 60.0
+    """Without a laser, a follower farther than this from its predecessor counts as split
+    from it (with a laser: when the predecessor is out of its scan) [m]."""
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
     """Traffic rules and last-resort braking applied to every member's commands."""
     leader: RoleConfig = RoleConfig()
@@ -373,9 +376,25 @@ class OutputConfig:
     """SUMO's tripinfo of every vehicle (tripinfo.csv)."""
     chunk_rows: int = 20_000
     """Rows buffered before the trajectory table is appended to disk."""
+    format: str = "csv"
+    """Format of the trajectory table: `csv`, or `parquet` (needs platoon-sumo[parquet])."""
+    metrics_start_s: float = 0.0
+    """Spacing, comfort and string-stability metrics use the steps from this simulation
+    time on (e.g. after a warm-up); safety events always count over the whole run [s]."""
+    sumo_outputs: bool = True
+    """SUMO's emissions device in tripinfo, its summary output and edgeData (network
+    effect on the other traffic)."""
+    edgedata_period_s: float = 60.0
+    """Aggregation interval of SUMO's edgeData output [s]."""
+    scan_snapshot_s: float | None = None
+    """Keep the first follower's laser scan at this time for the report's scan figure;
+    default: the scan halfway through its scans that saw its predecessor [s]."""
 
     def __post_init__(self) -> None:
         require(self.chunk_rows >= 1, "chunk_rows", "must be >= 1")
+        require_choice(self.format, ("csv", "parquet"), "format")
+        require(math.isfinite(self.metrics_start_s), "metrics_start_s", "must be finite")
+        require(self.edgedata_period_s > 0, "edgedata_period_s", "must be > 0")
 
 
 @dataclass(frozen=True)

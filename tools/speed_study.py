@@ -29,9 +29,10 @@ SCENARIO = ROOT / "scenarios" / "paper_world.yaml"
 DEFAULT_SPEEDS = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.6, 0.8)
 LAP_M = 43.0  # one lap of loop_outer in the right lane (networks/paper_world/README.md)
 
-#: The followers compared, each with the parameters it needs at robot scale.
-FOLLOWERS: dict[str, dict[str, Any]] = {
-    "paper_follower": {"type": "paper_follower"},
+#: The followers compared, each with the parameters it needs at robot scale; None: as
+#: configured in the scenario (the paper follower with the reading of docs/paper.md).
+FOLLOWERS: dict[str, dict[str, Any] | None] = {
+    "paper_follower": None,
     "laser_follower": {
         "type": "laser_follower",
         "params": {  # robot scale, as documented in platoon_sumo/control/laser_follower.py
@@ -68,8 +69,9 @@ def scenario_for(case: Case, base: dict[str, Any]) -> dict[str, Any]:
     platoon = data["platoons"][0]
     leader = platoon["leader"]
     leader.setdefault("params", {})["linear_mps"] = case.speed_mps
-    follower = {**FOLLOWERS[case.follower], "sensor": platoon["follower"]["sensor"]}
-    platoon["follower"] = follower
+    chosen = FOLLOWERS[case.follower]
+    if chosen is not None:
+        platoon["follower"] = {**chosen, "sensor": platoon["follower"]["sensor"]}
     data["simulation"]["end_s"] = case.end_s
     for key in ("net_file",):
         data["network"][key] = str((SCENARIO.parent / data["network"][key]).resolve())

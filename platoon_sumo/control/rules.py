@@ -29,8 +29,11 @@ def signal_speed_limit(
         return math.inf
     d = signal.distance_m - stop_margin_m
     if d <= 0.0:
-        # Past the planned stop point: on yellow drive on; on red hold at the line.
-        return math.inf if signal.state == "y" else 0.0
+        # Inside the margin: hold at the line, unless on yellow the line itself is too
+        # close to stop at (then clear the junction, as a driver would).
+        to_line = max(signal.distance_m, 1e-6)
+        too_close = speed_mps * speed_mps / (2 * to_line) > yellow_max_decel_mps2
+        return math.inf if signal.state == "y" and too_close else 0.0
     needed = speed_mps * speed_mps / (2 * d)
     if needed <= comfort_decel_mps2:
         return math.sqrt(2 * comfort_decel_mps2 * d)

@@ -36,8 +36,13 @@ def l_shaped_path(turn_radius_m: float = 12.0) -> RoutePath:
     return RoutePath.from_pieces([east, arc, north], ["e", "j", "n"], [13.89] * 3, [3.2] * 3, 0.25)
 
 
-def drive(path, steps, signal_at_s=None, signal_state="r", ahead=None, params=None):
-    """Closed loop: controller -> bicycle model; returns per-step (s_front, offset, v, kappa)."""
+def drive(
+    path, steps, signal_at_s=None, signal_state="r", ahead=None, params=None, signal_seen_m=1e9
+):
+    """Closed loop: controller -> bicycle model; returns per-step (s_front, offset, v).
+
+    The signal at `signal_at_s` shows `signal_state` once it is within `signal_seen_m`
+    (before that it is green: a light that changes late)."""
     ctrl = RouteFollowing(params or RouteFollowingParams())
     ctrl.reset()
     state = KinematicState.of(-FRONT_OFFSET_M, 0.0, 0.0, 0.0)
@@ -49,7 +54,9 @@ def drive(path, steps, signal_at_s=None, signal_state="r", ahead=None, params=No
         front = path.project(fx, fy)
         signal = None
         if signal_at_s is not None and front.s_m < signal_at_s:
-            signal = SignalAhead("tls", 0, signal_state, signal_at_s - front.s_m)
+            to_line = signal_at_s - front.s_m
+            shown = signal_state if to_line <= signal_seen_m else "G"
+            signal = SignalAhead("tls", 0, shown, to_line)
         obs = Observation(
             time_s=k * DT,
             dt_s=DT,
@@ -114,8 +121,21 @@ def test_brakes_behind_a_stopped_vehicle():
 
 def test_drives_through_yellow_when_too_close_to_stop_comfortably():
     path = l_shaped_path()
-    # Reach speed first, then the light is 8 m ahead: stopping would need > 4 m/s^2.
-    ctrl_log = drive(path, steps=120)
-    s_now = ctrl_log[-1, 0]
-    log = drive(path, steps=160, signal_at_s=s_now + 8.0, signal_state="y")
-    assert log[-1, 0] > s_now + 8.0
+    # At 13.9 m/s the light turns yellow 8 m ahead: stopping would need about 12 m/s^2.
+    through = drive(path, steps=200, signal_at_s=70.0, signal_state="y", signal_seen_m=8.0)
+    near_light = (through[:, 0] > 60.0) & (through[:, 0] < 72.0)
+    assert through[-1, 0] > 70.0 and through[near_light, 2].min() > 13.0
+    # Turning yellow 60 m ahead it stops comfortably instead.
+    stops = drive(path, steps=300, signal_at_s=70.0, signal_state="y", signal_seen_m=60.0)
+    assert stops[-1, 0] < 70.0 and stops[-1, 2] == 0.0
+
+
+def test_a_car_that_braked_for_yellow_does_not_creep_over_the_line():
+    from platoon_sumo.control.rules import signal_speed_limit
+
+    # Slow and 0.4 m before the line (inside the 0.5 m stop margin): hold, on yellow too.
+    for state in ("y", "r"):
+        limit = signal_speed_limit(SignalAhead("t", 0, state, 0.4), 0.9, 0.1, 2.5, 4.0, 0.5)
+        assert limit == 0.0
+    # Fast and 0.4 m before the line on yellow: too late to stop, clear the junction.
+    assert signal_speed_limit(SignalAhead("t", 0, "y", 0.4), 8.0, 0.1, 2.5, 4.0, 0.5) == math.inf

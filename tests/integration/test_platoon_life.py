@@ -1,0 +1,115 @@
+"""Platoons in traffic: a red light splits a platoon that then re-forms; a SUMO car cuts in."""
+
+from __future__ import annotations
+
+import json
+
+import libsumo
+import pandas as pd
+
+from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.runner import load_plan, run
+from tests.helpers import URBAN_GRID_NET
+
+
+def test_red_light_splits_the_platoon_and_it_reforms_after_green(write_scenario, tmp_path):
+    # The leader passes A1 on the last green; the light turns yellow for the first follower,
+    # which stops, loses its predecessor, drives on at green and catches up again.
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 330.0, "seed": 3},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "platoons": [{
+            "id": "p", "members": 3, "spacing_m": 10.0, "depart_s": 77.0,
+            "route": {"edges": ["left1A1", "A1B1", "B1C1", "C1C2", "C2top2"]},
+            "leader": {"type": "route_following", "params": {"cruise_speed_mps": 7.0},
+                       "sensor": {"preset": "utm30lx"}},
+            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                         "params": {"on_lost": "route_following",
+                                    "fallback": {"cruise_speed_mps": 13.0}}},
+        }],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    assert summary["collisions"] == 0 and summary["red_light_violations"] == 0
+    assert summary["platoon_vehicles"]["arrived"] == 3
+    log = summary["platoon_event_log"]
+    split = next(e for e in log if e["kind"] == "split")
+    reform = next(e for e in log if e["kind"] == "reformation")
+    assert split["follower_id"] == reform["follower_id"] and split["time_s"] < reform["time_s"]
+    follower = traj[traj["vehicle_id"] == split["follower_id"]]
+    # it was held by the red light while split ...
+    between = (follower["time_s"] > split["time_s"]) & (follower["time_s"] < reform["time_s"])
+    held = follower[between]
+    at_red = held[(held["signal_state"] == "r") & (held["speed_mps"] < 0.01)]
+    assert len(at_red) > 50
+    # ... and re-formed only after that light had turned green
+    assert at_red["time_s"].max() < reform["time_s"]
+    assert summary["platoon_events"] == {"splits": 1, "reformations": 1, "cut_ins": 0}
+
+
+class ForceCutIn:
+    """Makes one SUMO car on the left lane change into the platoon's lane at a set time."""
+
+    def __init__(self, at_s: float):
+        self.at_s = at_s
+        self.intruder: str | None = None
+
+    def on_start(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_end(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+        if self.intruder is not None or record.time_s < self.at_s:
+            return
+        w = record.world
+        lead, follow = w.index.get("p.0"), w.index.get("p.1")
+        if lead is None or follow is None:
+            return
+        gap_lo, gap_hi = w.front_x_m[follow], w.front_x_m[lead] - w.length_m[lead]
+        for vid, i in w.index.items():  # a car on the left lane alongside the gap
+            alongside = gap_lo + 6.0 < w.front_x_m[i] < gap_hi - 2.0
+            left_lane = w.lane_ids[i] in ("left1A1_1", "A1B1_1")
+            if not vid.startswith("p.") and left_lane and alongside:
+                # An aggressive driver: only avoids an immediate collision (lcMode bits 8-9 = 1).
+                libsumo.vehicle.setLaneChangeMode(vid, 0b01_0000_0000)
+                libsumo.vehicle.changeLane(vid, 0, 5.0)
+                self.intruder = vid
+                return
+
+
+def test_sumo_car_cuts_in_and_the_follower_opens_its_gap(write_scenario, tmp_path):
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 75.0, "seed": 5},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "traffic": {
+            # faster than the platoon: they overtake it on the left lane
+            "vehicle_types": [{"id": "h", "sigma": 0.0, "max_speed_mps": 10.0}],
+            "flows": [{"from_edge": "left1A1", "to_edge": "C1right1", "vehs_per_hour": 1500,
+                       "begin_s": 44.0, "end_s": 60.0, "type": "h"}],
+        },
+        "platoons": [{
+            "id": "p", "members": 2, "spacing_m": 20.0, "depart_s": 45.0, "depart_lane": 0,
+            "route": {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]},
+            "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0},
+                       "sensor": {"preset": "utm30lx"}},
+            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                         "params": {"time_gap_s": 2.5}},
+        }],
+    }  # fmt: skip
+    forcing = ForceCutIn(at_s=52.0)
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out", [forcing]).directory
+    summary = json.loads((out / "summary.json").read_text())
+    assert forcing.intruder is not None, "a car was alongside the gap to cut in"
+    cut_ins = [e for e in summary["platoon_event_log"] if e["kind"] == "cut_in"]
+    assert [e["other_id"] for e in cut_ins] == [forcing.intruder]
+    assert summary["collisions"] == 0
+    traj = pd.read_csv(out / "trajectories.csv")
+    follower = traj[(traj["vehicle_id"] == "p.1") & (traj["time_s"] >= cut_ins[0]["time_s"])]
+    behind_intruder = follower[follower["ahead_id"] == forcing.intruder]
+    assert len(behind_intruder) > 20
+    # the follower opened a safe gap to the car that cut in (it never tailgated it)
+    assert behind_intruder["ahead_gap_m"].min() > 2.0
+    assert behind_intruder["ahead_gap_m"].iloc[-1] > behind_intruder["ahead_gap_m"].iloc[0]
