@@ -78,10 +78,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from platoon_sumo.runner import load_plan, run
 
     path = Path(args.scenario) if args.scenario else default_scenario()
-    plan = load_plan(path, end_s=args.end, seed=args.seed)
+    plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
     result = run(plan, out_dir=args.out, hooks=hooks)
     s = result.summary
+    depart = {p.config.id: p.config.depart_s for p in plan.platoons}
+    for pid in s.get("platoons_not_inserted", []):
+        why = (
+            "it departs after the simulation's end"
+            if depart[pid] > plan.scenario.simulation.end_s - plan.scenario.simulation.step_s
+            else "its first lane never had room for all members (try another depart_s, "
+            "depart_pos_m or first edge)"
+        )
+        print(f"warning: platoon '{pid}' was never inserted: {why}", file=sys.stderr)
     pv = s["platoon_vehicles"]
     print(
         f"{s['scenario']}: {s['simulated_s']:.0f} s simulated in {s['wall_clock_s']:.1f} s "
@@ -151,6 +160,22 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from platoon_sumo.report import write_report
+
+    path = write_report(args.results, args.out)
+    print(f"report written to {path}")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from platoon_sumo.report import write_comparison
+
+    path = write_comparison(args.results, args.out)
+    print(f"comparison written to {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="platoon-sumo",
@@ -164,6 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--end", type=float, help="override simulation.end_s [s]")
     p_run.add_argument("--seed", type=int, help="override simulation.seed")
     p_run.add_argument("--quiet", action="store_true", help="no progress line")
+    p_run.add_argument(
+        "--no-platoons", action="store_true",
+        help="run the same traffic without platoons (baseline for network effects)",
+    )  # fmt: skip
     p_run.set_defaults(func=_cmd_run)
     p_scan = sub.add_parser("scan", help="run a scenario to a time and draw a laser scan as PNG")
     p_scan.add_argument("scenario")
@@ -174,6 +203,14 @@ def build_parser() -> argparse.ArgumentParser:
     p_val = sub.add_parser("validate", help="check a scenario file without running it")
     p_val.add_argument("scenario")
     p_val.set_defaults(func=_cmd_validate)
+    p_rep = sub.add_parser("report", help="figures and report.md of a results folder")
+    p_rep.add_argument("results", help="results folder of a finished run")
+    p_rep.add_argument("--out", help="folder for the report (default: RESULTS/report)")
+    p_rep.set_defaults(func=_cmd_report)
+    p_cmp = sub.add_parser("compare", help="several runs' summaries and figures side by side")
+    p_cmp.add_argument("results", nargs="+", help="results folders of finished runs")
+    p_cmp.add_argument("--out", default="comparison", help="folder to write (default: comparison)")
+    p_cmp.set_defaults(func=_cmd_compare)
     return parser
 
 

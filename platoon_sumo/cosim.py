@@ -166,6 +166,7 @@ class CoSimulation:
         self.active: dict[str, PlatoonVehicle] = {}
         self.counters = RunCounters()
         self._pending = sorted(plan.platoons, key=lambda p: (p.config.depart_s, p.config.id))
+        """Platoons not inserted yet (due ones wait for room on their first lane)."""
         self._waiting_insert: dict[str, MemberPlan] = {}
         self._paths: dict[tuple[str, ...], RoutePath] = {}
         self._overlapping: set[tuple[str, ...]] = set()
@@ -221,9 +222,24 @@ class CoSimulation:
 
     # ------------------------------------------------------------------ insertion
 
+    @property
+    def pending_platoons(self) -> list[PlatoonPlan]:
+        """Platoons that were never inserted (their depart time or first-lane room not yet come)."""
+        return list(self._pending)
+
     def _insert_due_platoons(self, time_s: float) -> None:
-        while self._pending and self._pending[0].config.depart_s <= time_s + 1e-9:
-            platoon = self._pending.pop(0)
+        """Insert each due platoon as a whole once its first lane has room for all members
+        (a platoon never starts scattered behind other traffic); later ones keep waiting."""
+        due = [p for p in self._pending if p.config.depart_s <= time_s + 1e-9]
+        for platoon in due:
+            cfg = platoon.config
+            lane = f"{platoon.edges[0]}_{platoon.depart_lane}"
+            front = platoon.members[0].depart_pos_m
+            rear = platoon.members[-1].depart_pos_m - cfg.vehicle.length_m
+            # the rear member's follower keeps its minGap; the leader must not touch anyone ahead
+            if not self.backend.lane_is_free(lane, rear - 10.0, front + cfg.spacing_m):
+                continue
+            self._pending.remove(platoon)
             for member in platoon.members:
                 self.backend.add_vehicle(
                     member.vehicle_id,

@@ -56,9 +56,21 @@ class RunResult:
     summary: dict[str, Any]
 
 
-def load_plan(path: str | Path, end_s: float | None = None, seed: int | None = None) -> RunPlan:
-    """Load and check a scenario, with command-line overrides applied."""
+def load_plan(
+    path: str | Path,
+    end_s: float | None = None,
+    seed: int | None = None,
+    without_platoons: bool = False,
+) -> RunPlan:
+    """Load and check a scenario, with command-line overrides applied.
+
+    `without_platoons` runs the same traffic with no platoon at all: the baseline that
+    shows what the platoons do to everyone else."""
     source = load_scenario(path)
+    if without_platoons:
+        source = ScenarioSource(
+            dataclasses.replace(source.scenario, platoons=()), source.path, source.text
+        )
     sim = source.scenario.simulation
     changes: dict[str, Any] = {}
     if end_s is not None:
@@ -157,6 +169,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         backend.close()
     wall_s = time.perf_counter() - wall_start
     summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
+    summary["platoons_not_inserted"] = sorted(p.config.id for p in sim.pending_platoons)
     summary.update(_platoon_events(sim.links.events))
     summary["followers"] = stats.followers()
     trips, sumo_summary, edgedata = read_run_outputs(directory)

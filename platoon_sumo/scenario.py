@@ -435,6 +435,8 @@ class ScenarioSource:
         copy in a results folder repeats the run from anywhere."""
         data = dict(yaml.safe_load(self.text))
         data.setdefault("name", self.scenario.name)
+        if not self.scenario.platoons:  # e.g. run with --no-platoons
+            data.pop("platoons", None)
         data["simulation"] = {**(data.get("simulation") or {}), **dataclasses.asdict(simulation)}
 
         def absolute(section: str, key: str) -> None:

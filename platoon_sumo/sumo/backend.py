@@ -206,6 +206,15 @@ class SumoBackend:
         except Exception as exc:  # libsumo raises FatalTraCIError for some bad values
             raise SumoError(f"cannot create vehicle type '{type_id}': {exc}") from None
 
+    def lane_is_free(self, lane_id: str, from_m: float, to_m: float) -> bool:
+        """No vehicle's footprint overlaps [from_m, to_m] along the lane (positions from the
+        lane start; a vehicle spans [pos - length, pos])."""
+        for vid in libsumo.lane.getLastStepVehicleIDs(lane_id):
+            front = libsumo.vehicle.getLanePosition(vid)
+            if front > from_m and front - libsumo.vehicle.getLength(vid) < to_m:
+                return False
+        return True
+
     def departed_ids(self) -> tuple[str, ...]:
         return tuple(libsumo.simulation.getDepartedIDList())
 

@@ -113,3 +113,25 @@ def test_sumo_car_cuts_in_and_the_follower_opens_its_gap(write_scenario, tmp_pat
     # the follower opened a safe gap to the car that cut in (it never tailgated it)
     assert behind_intruder["ahead_gap_m"].min() > 2.0
     assert behind_intruder["ahead_gap_m"].iloc[-1] > behind_intruder["ahead_gap_m"].iloc[0]
+
+
+def test_platoons_on_one_route_are_inserted_whole_when_there_is_room(write_scenario, tmp_path):
+    route = {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]}
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 40.0, "seed": 2},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "platoons": [
+            {"id": "p", "members": 3, "spacing_m": 8.0, "depart_s": 2.0, "route": route},
+            {"id": "q", "members": 3, "spacing_m": 8.0, "depart_s": 2.0, "route": route},
+            {"id": "late", "members": 2, "depart_s": 39.95, "route": route},
+        ],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    first_seen = traj.groupby("vehicle_id")["time_s"].min()
+    # q waited until p had cleared the first lane, then all of q came in together
+    assert first_seen[["q.0", "q.1", "q.2"]].min() > first_seen[["p.0", "p.1", "p.2"]].max() + 1.0
+    assert first_seen[["q.0", "q.1", "q.2"]].nunique() == 1
+    assert summary["collisions"] == 0
+    assert summary["platoons_not_inserted"] == ["late"]
