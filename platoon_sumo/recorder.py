@@ -1,96 +1,222 @@
 """Step hooks that write a run's tables: the platoon trajectories, in bounded chunks.
 
-Columns of trajectories.csv (one row per platoon vehicle per step, after the step):
+`TrajectoryRecorder` writes one row per platoon vehicle per step (columns and units in
+`TRAJECTORY_COLUMNS` and docs/outputs.md) as CSV or Parquet, appending every
+`chunk_rows` rows, and feeds the same rows to a `RunStats` for the run's summaries.
+Its memory is bounded: one chunk of rows, per-vehicle running sums, and per-vehicle
+trails of recent positions (pruned as the follower passes them, capped in length).
 
-| column | unit | meaning |
-|---|---|---|
-| time_s | s | simulation time |
-| vehicle_id, platoon_id | | `<platoon>.<index>` and the platoon's id |
-| member_index, role | | 0 = leader; `leader` / `follower` |
-| x_m, y_m | m | front bumper centre (SUMO's reference point), network coordinates |
-| yaw_rad | rad | heading, counter-clockwise from +x |
-| speed_mps, accel_mps2 | m/s, m/s² | vehicle model's speed and its change over the step |
-| cmd_speed_mps, cmd_yaw_rate_radps | m/s, rad/s | the controller's command this step |
-| route_s_m | m | front bumper's distance along the route's centre-line |
-| lateral_offset_m | m | front bumper's offset from the route centre-line (left +) |
-| lane_width_m | m | width of the lane the route uses there |
-| lane_id | | lane SUMO maps the vehicle to |
-| signal_tls, signal_state | | next traffic light on the route and its link state |
-| signal_distance_m | m | distance from the front bumper to that light's stop line |
-| ahead_id, ahead_gap_m | -, m | nearest vehicle ahead on the route lanes; bumper-to-bumper gap |
-| predecessor_id | | platoon member ahead (empty for the first member in the network) |
-| gap_to_predecessor_m | m | front-bumper centre to predecessor's rear-bumper centre (truth) |
-| desired_gap_m | m | the follower controller's spacing policy at its speed (if it has one) |
-| predecessor_rays | | rays of this step's scan returning from the predecessor (empty: no scan) |
-| supervisor | | what the supervisor enforced over the command: `signal`, `emergency`, or empty |
+`ScanSnapshot` keeps one follower's laser scan (with the obstacles it saw) for the
+report's scan figure.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from platoon_sumo.metrics.kernels import (
+    PathTrail,
+    jerk_mps3,
+    spacing_error_m,
+    time_headway_s,
+    time_to_collision_s,
+)
+from platoon_sumo.metrics.stats import RunStats
+
 if TYPE_CHECKING:
     from platoon_sumo.cosim import CoSimulation, PlatoonVehicle, StepRecord
+    from platoon_sumo.sensors.laser import LaserScan
 
-TRAJECTORY_COLUMNS = (
-    "time_s", "vehicle_id", "platoon_id", "member_index", "role", "x_m", "y_m", "yaw_rad",
-    "speed_mps", "accel_mps2", "cmd_speed_mps", "cmd_yaw_rate_radps", "route_s_m",
-    "lateral_offset_m", "lane_width_m", "lane_id", "signal_tls", "signal_state",
-    "signal_distance_m", "ahead_id", "ahead_gap_m", "predecessor_id", "gap_to_predecessor_m",
-    "desired_gap_m", "predecessor_rays", "supervisor",
-)  # fmt: skip
+#: Column name -> type (f float, i integer, s text); the table's columns in order.
+COLUMN_TYPES: dict[str, str] = {
+    "time_s": "f", "vehicle_id": "s", "platoon_id": "s", "member_index": "i", "role": "s",
+    "x_m": "f", "y_m": "f", "yaw_rad": "f", "speed_mps": "f", "accel_mps2": "f",
+    "jerk_mps3": "f", "cmd_speed_mps": "f", "cmd_yaw_rate_radps": "f", "cmd_heading_rad": "f",
+    "executed_speed_mps": "f", "route_s_m": "f", "lateral_offset_m": "f",
+    "lane_width_m": "f", "lane_id": "s", "signal_tls": "s", "signal_state": "s",
+    "signal_distance_m": "f", "ahead_id": "s", "ahead_gap_m": "f", "predecessor_id": "s",
+    "predecessor_speed_mps": "f", "gap_to_predecessor_m": "f", "measured_gap_m": "f",
+    "desired_gap_m": "f", "spacing_error_m": "f", "time_headway_s": "f", "ttc_s": "f",
+    "lateral_deviation_m": "f", "predecessor_rays": "i", "predecessor_in_view": "i",
+    "supervisor": "s",
+}  # fmt: skip
+TRAJECTORY_COLUMNS = tuple(COLUMN_TYPES)
+FORMATS = ("csv", "parquet")
+#: Trail points are kept every this share of the vehicle's length, at most this many.
+TRAIL_SPACING_LENGTHS = 0.05
+TRAIL_MAX_POINTS = 5000
+
+
+class TableWriter:
+    """Appends chunks of rows (tuples in column order) to a CSV or Parquet file."""
+
+    def __init__(self, path: Path, fmt: str = "csv"):
+        if fmt not in FORMATS:
+            raise ValueError(f"unknown table format {fmt!r}; expected one of {FORMATS}")
+        self.path, self.fmt = path, fmt
+        self._parquet: Any = None
+        self._schema: Any = None
+
+    def open(self) -> None:
+        if self.fmt == "csv":
+            with self.path.open("w", newline="") as f:
+                csv.writer(f).writerow(TRAJECTORY_COLUMNS)
+            return
+        import pyarrow as pa  # optional dependency: platoon-sumo[parquet]
+        import pyarrow.parquet as pq
+
+        types = {"f": pa.float64(), "i": pa.int64(), "s": pa.string()}
+        self._schema = pa.schema([(c, types[t]) for c, t in COLUMN_TYPES.items()])
+        self._parquet = pq.ParquetWriter(str(self.path), self._schema)
+
+    def write(self, rows: list[tuple[Any, ...]]) -> None:
+        if not rows:
+            return
+        if self.fmt == "csv":
+            with self.path.open("a", newline="") as f:
+                csv.writer(f).writerows(rows)
+            return
+        import pyarrow as pa
+
+        columns = list(zip(*rows, strict=True))
+        arrays = [pa.array(col, type=self._schema.field(i).type) for i, col in enumerate(columns)]
+        self._parquet.write_table(pa.Table.from_arrays(arrays, schema=self._schema))
+
+    def close(self) -> None:
+        if self._parquet is not None:
+            self._parquet.close()
+            self._parquet = None
 
 
 class TrajectoryRecorder:
-    """Appends one row per platoon vehicle per step; flushes every `chunk_rows` rows."""
+    """Appends one row per platoon vehicle per step; flushes every `chunk_rows` rows.
 
-    def __init__(self, path: Path, chunk_rows: int = 20_000):
+    `stats` (if given) receives every step's rows and the step's collisions and
+    red-light violations. `write=False` keeps only the statistics (no table).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        chunk_rows: int = 20_000,
+        fmt: str = "csv",
+        stats: RunStats | None = None,
+        write: bool = True,
+    ):
         self.path = path
         self.chunk_rows = chunk_rows
+        self.writer = TableWriter(path, fmt) if write else None
+        self.stats = stats
         self._rows: list[tuple[Any, ...]] = []
         self.rows_written = 0
+        self._accel: dict[str, float] = {}
+        self._trails: dict[str, PathTrail] = {}
+        self._bumper: dict[str, tuple[float, float]] = {}
 
     def on_start(self, sim: CoSimulation) -> None:
-        with self.path.open("w", newline="") as f:
-            csv.writer(f).writerow(TRAJECTORY_COLUMNS)
+        if self.writer is not None:
+            self.writer.open()
 
     def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
-        world = record.world
-        for v in record.vehicles:
+        by_id = {v.id: v for v in record.vehicles}
+        for v in record.vehicles:  # every trail first, then measure against them
             fx, fy = v.front_bumper()
-            i = world.index.get(v.id)
-            signal, ahead = v.signal, v.vehicle_ahead
-            self._rows.append(
-                (
-                    round(record.time_s, 6), v.id, v.plan.platoon_id, v.plan.index, v.plan.role,
-                    fx, fy, float(v.state.yaw_rad[0]), float(v.state.speed_mps[0]), v.accel_mps2,
-                    v.command.speed_mps if math.isfinite(v.command.speed_mps) else "",
-                    v.command.yaw_rate_radps, v.route_s_m, v.lateral_offset_m,
-                    float(v.path.lane_width_m[min(int(v.route_s_m // v.path.spacing_m),
-                                                  len(v.path.lane_width_m) - 1)]),
-                    world.lane_ids[i] if i is not None else "",
-                    signal.tls_id if signal else "", signal.state if signal else "",
-                    signal.distance_m if signal else "",
-                    ahead.vehicle_id if ahead else "", ahead.gap_m if ahead else "",
-                    v.predecessor_id or "", _blank(v.gap_to_predecessor_m),
-                    _blank(desired_gap(v)), _blank(v.predecessor_rays), v.supervisor_state,
-                )
-            )  # fmt: skip
-        if len(self._rows) >= self.chunk_rows:
-            self.flush()
+            trail = self._trails.get(v.id)
+            if trail is None:
+                spacing = TRAIL_SPACING_LENGTHS * v.platoon.config.vehicle.length_m
+                trail = self._trails[v.id] = PathTrail(spacing, TRAIL_MAX_POINTS)
+            trail.append(fx, fy)
+        rows = [self._row(v, record, by_id, sim.dt_s) for v in record.vehicles]
+        self._bumper = {v.id: (row["x_m"], row["y_m"]) for v, row in zip(
+            record.vehicles, rows, strict=True)}  # fmt: skip
+        followed = {v.predecessor_id for v in record.vehicles}
+        for vid, trail in self._trails.items():
+            if vid not in followed:
+                trail.keep_last(2)  # nobody measures against it: keep only its end
+        for gone in set(self._trails) - set(by_id):  # arrived: forget (bounded memory)
+            del self._trails[gone]
+            self._accel.pop(gone, None)
+            self._bumper.pop(gone, None)
+        if self.stats is not None:
+            self.stats.add_step(record.time_s, rows)
+            self.stats.add_events(
+                [(c.vehicle_a, c.vehicle_b) for c in record.new_collisions],
+                [v.vehicle_id for v in record.new_violations],
+            )
+        if self.writer is not None:
+            self._rows.extend(tuple(row[c] for c in TRAJECTORY_COLUMNS) for row in rows)
+            if len(self._rows) >= self.chunk_rows:
+                self.flush()
+
+    def _row(
+        self,
+        v: PlatoonVehicle,
+        record: StepRecord,
+        by_id: dict[str, PlatoonVehicle],
+        dt_s: float,
+    ) -> dict[str, Any]:
+        world = record.world
+        fx, fy = v.front_bumper()
+        i = world.index.get(v.id)
+        signal, ahead = v.signal, v.vehicle_ahead
+        speed = float(v.state.speed_mps[0])
+        pred = by_id.get(v.predecessor_id) if v.predecessor_id else None
+        pred_speed = float(pred.state.speed_mps[0]) if pred is not None else None
+        gap = v.gap_to_predecessor_m
+        desired = desired_gap(v)
+        jerk = jerk_mps3(v.accel_mps2, self._accel.get(v.id), dt_s)
+        self._accel[v.id] = v.accel_mps2
+        trail = self._trails.get(v.predecessor_id) if v.predecessor_id else None
+        in_view = None
+        if v.predecessor_id is not None and v.predecessor_rays is not None:
+            in_view = int(v.predecessor_rays > 0)
+        cmd, executed = v.command, v.executed
+        lane_width = v.path.lane_width_m[
+            min(int(v.route_s_m // v.path.spacing_m), len(v.path.lane_width_m) - 1)
+        ]
+        return {
+            "time_s": round(record.time_s, 6), "vehicle_id": v.id,
+            "platoon_id": v.plan.platoon_id, "member_index": v.plan.index, "role": v.plan.role,
+            "x_m": fx, "y_m": fy, "yaw_rad": float(v.state.yaw_rad[0]), "speed_mps": speed,
+            "accel_mps2": v.accel_mps2, "jerk_mps3": jerk,
+            "cmd_speed_mps": _finite(cmd.speed_mps), "cmd_yaw_rate_radps": cmd.yaw_rate_radps,
+            "cmd_heading_rad": cmd.heading_rad,
+            "executed_speed_mps": _finite(executed.speed_mps),
+            "route_s_m": v.route_s_m, "lateral_offset_m": v.lateral_offset_m,
+            "lane_width_m": float(lane_width),
+            "lane_id": world.lane_ids[i] if i is not None else None,
+            "signal_tls": signal.tls_id if signal else None,
+            "signal_state": signal.state if signal else None,
+            "signal_distance_m": signal.distance_m if signal else None,
+            "ahead_id": ahead.vehicle_id if ahead else None,
+            "ahead_gap_m": ahead.gap_m if ahead else None,
+            "predecessor_id": v.predecessor_id, "predecessor_speed_mps": pred_speed,
+            "gap_to_predecessor_m": gap, "measured_gap_m": measured_gap(v, self._bumper.get(v.id)),
+            "desired_gap_m": desired, "spacing_error_m": spacing_error_m(gap, desired),
+            "time_headway_s": time_headway_s(gap, speed) if v.predecessor_id else None,
+            "ttc_s": time_to_collision_s(gap, speed, pred_speed),
+            "lateral_deviation_m": trail.deviation(fx, fy) if trail is not None else None,
+            "predecessor_rays": v.predecessor_rays if v.predecessor_id else None,
+            "predecessor_in_view": in_view,
+            "supervisor": v.supervisor_state or None,
+        }  # fmt: skip
 
     def flush(self) -> None:
-        if self._rows:
-            with self.path.open("a", newline="") as f:
-                csv.writer(f).writerows(self._rows)
+        if self._rows and self.writer is not None:
+            self.writer.write(self._rows)
             self.rows_written += len(self._rows)
             self._rows.clear()
 
     def on_end(self, sim: CoSimulation) -> None:
         self.flush()
+        if self.writer is not None:
+            self.writer.close()
 
 
 def desired_gap(v: PlatoonVehicle) -> float | None:
@@ -101,5 +227,109 @@ def desired_gap(v: PlatoonVehicle) -> float | None:
     return float(policy(float(v.state.speed_mps[0])))
 
 
-def _blank(value: float | int | None) -> float | int | str:
-    return "" if value is None else value
+def measured_gap(v: PlatoonVehicle, previous_bumper: tuple[float, float] | None) -> float | None:
+    """The gap the follower's perception estimated when it chose this step's command:
+    from its front bumper at the start of the step (`previous_bumper`) to the tracked
+    rear of its predecessor (controllers with a `track` having `x_m`, `y_m`)."""
+    track = getattr(v.controller, "track", None)
+    if v.predecessor_id is None or track is None or previous_bumper is None:
+        return None
+    x, y = getattr(track, "x_m", None), getattr(track, "y_m", None)
+    if x is None or y is None:
+        return None
+    return math.hypot(float(x) - previous_bumper[0], float(y) - previous_bumper[1])
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+class ScanSnapshot:
+    """Keeps one laser scan for the report, with the footprints (its own excluded) and
+    wall segments it was cast against; `save` writes an .npz that `platoon_sumo.report`
+    draws with `plot_scan`.
+
+    The vehicle is `vehicle_id`, else the first follower with a sensor (else any vehicle
+    with one). The scan is its first one at or after `at_s`; with `at_s` None, the one
+    closest to the middle of the vehicle's scans that saw its predecessor (kept at the
+    1st, 2nd, 4th, 8th, ... such scan: two scans in memory, whatever the run's length).
+    """
+
+    def __init__(self, at_s: float | None = None, vehicle_id: str | None = None):
+        self.at_s = at_s
+        self.vehicle_id = vehicle_id
+        self._kept: list[tuple[int, LaserScan, np.ndarray, str]] = []
+        self._count = 0
+        self._previous: tuple[float, np.ndarray, dict[str, int]] | None = None
+        self.segments: np.ndarray | None = None
+        self.frozen = False
+
+    def on_start(self, sim: CoSimulation) -> None:
+        self.segments = sim.static_segments
+
+    def on_end(self, sim: CoSimulation) -> None:
+        pass
+
+    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+        if self.frozen:
+            return
+        previous = self._previous
+        self._previous = (record.time_s, sim.rects, record.world.index)
+        if previous is None:
+            return
+        candidates = [v for v in record.vehicles if v.scan is not None]
+        if self.vehicle_id is not None:
+            candidates = [v for v in candidates if v.id == self.vehicle_id]
+        else:
+            candidates.sort(key=lambda v: (v.plan.index != 1, v.plan.index, v.id))
+        if not candidates:
+            return
+        v = candidates[0]
+        if self.vehicle_id is None:
+            self.vehicle_id = v.id
+        scan = v.scan
+        if scan is None or abs(scan.stamp_s - previous[0]) > 1e-9:
+            return  # not a new scan of this step
+        own = previous[2].get(v.id)
+        rects = np.delete(previous[1], own, axis=0) if own is not None else previous[1]
+        if self.at_s is not None:
+            self._kept = [(0, scan, rects, v.id)]
+            self.frozen = record.time_s >= self.at_s
+            return
+        if not v.predecessor_rays:
+            return
+        self._count += 1
+        if self._count & (self._count - 1) == 0:  # a power of two
+            self._kept = [*self._kept[-1:], (self._count, scan, rects, v.id)]
+
+    def chosen(self) -> tuple[LaserScan, np.ndarray, str] | None:
+        if not self._kept:
+            return None
+        middle = self._count / 2
+        _, scan, rects, vid = min(self._kept, key=lambda k: abs(k[0] - middle))
+        return scan, rects, vid
+
+    def save(self, path: Path) -> Path | None:
+        """Write the scan and the obstacles within its range; None if no scan was kept."""
+        chosen = self.chosen()
+        if chosen is None:
+            return None
+        scan, rects, vid = chosen
+        reach = scan.range_max + 10.0
+        near = np.hypot(rects[:, 0] - scan.origin_x_m, rects[:, 1] - scan.origin_y_m) < reach
+        segs = self.segments if self.segments is not None else np.zeros((0, 4))
+        if len(segs):
+            mid_x, mid_y = (segs[:, 0] + segs[:, 2]) / 2, (segs[:, 1] + segs[:, 3]) / 2
+            half = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1]) / 2
+            segs = segs[np.hypot(mid_x - scan.origin_x_m, mid_y - scan.origin_y_m) < reach + half]
+        fields = ("angle_min", "angle_max", "angle_increment", "time_increment", "scan_time",
+                  "range_min", "range_max", "origin_x_m", "origin_y_m", "heading_rad",
+                  "stamp_s")  # fmt: skip
+        meta: dict[str, Any] = {k: getattr(scan, k) for k in fields}
+        meta["vehicle_id"] = vid
+        with path.open("wb") as f:
+            np.savez_compressed(
+                f, ranges=scan.ranges, rectangles=rects[near], segments=segs,
+                meta=np.array(json.dumps(meta)),
+            )  # fmt: skip
+        return path

@@ -162,9 +162,20 @@ class FlowConfig:
     """Defaults to the simulation's end."""
     type: str | None = None
     """A vehicle type id; defaults to the background mix of `traffic.vehicle_types`."""
+    platoon_share: float = 0.0
+    """Penetration: share of this flow's vehicles that drive as platoons instead, built
+    from `platoon_template` and inserted evenly over the flow's time span."""
+    platoon_template: str | None = None
+    """Id of a platoon with `template: true` giving members, vehicle and controllers."""
 
     def __post_init__(self) -> None:
         require(self.vehs_per_hour > 0, "vehs_per_hour", "must be > 0")
+        require(0 <= self.platoon_share < 1, "platoon_share", "must be in [0, 1)")
+        require(
+            self.platoon_share == 0 or self.platoon_template is not None,
+            "platoon_template",
+            "a flow with platoon_share > 0 needs the id of a template platoon",
+        )
         require(self.end_s is None or self.end_s > self.begin_s, "end_s", "must be after begin_s")
 
 
@@ -329,8 +340,8 @@ class RoleConfig:
 class PlatoonConfig:
     id: str
     """Platoon name; its vehicles are `<id>.0` (leader), `<id>.1`, ..."""
-    route: RouteConfig
-    """The route every member drives."""
+    route: RouteConfig | None = None
+    """The route every member drives (required unless the platoon is a template)."""
     members: int = 1
     """Number of vehicles (1 to 100); member 0 leads."""
     depart_s: float = 0.0
@@ -353,10 +364,15 @@ class PlatoonConfig:
     follower: RoleConfig = RoleConfig()
     """Controller of members 1 and up."""
 
+    template: bool = False
+    """Only a template for flows with `platoon_share` (it does not drive itself)."""
+
     def __post_init__(self) -> None:
+        require(self.route is not None or self.template, "route", "required key is missing")
         require(
-            bool(self.id) and " " not in self.id, "id", "must be a non-empty name without spaces"
-        )
+            bool(self.id) and " " not in self.id and "." not in self.id,
+            "id", "must be a non-empty name without spaces or dots",
+        )  # fmt: skip
         require(self.members >= 1, "members", "must be >= 1")
         require(self.members <= 100, "members", "must be <= 100")
         require(self.spacing_m > 0, "spacing_m", "must be > 0")
@@ -555,7 +571,11 @@ def prepare(source: ScenarioSource) -> RunPlan:
     except Exception as exc:  # sumolib raises plain exceptions on a broken file
         raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
     _check_traffic(sc, network, file)
-    platoons = tuple(_prepare_platoon(p, i, network, file) for i, p in enumerate(sc.platoons))
+    declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
+    platoons = tuple(
+        _prepare_platoon(p, key, network, file)
+        for p, key in [*declared, *_platoons_from_flows(sc, file)]
+    )
     return RunPlan(source, net_file, route_files, additional, network, platoons)
 
 
@@ -633,9 +653,40 @@ def _route_edges(
         raise ScenarioError(file, where, str(exc), exc.hint) from None
 
 
-def _prepare_platoon(p: PlatoonConfig, i: int, network: Network, file: str) -> PlatoonPlan:
-    key = f"platoons[{i}]"
+def _platoons_from_flows(sc: Scenario, file: str) -> list[tuple[PlatoonConfig, str]]:
+    """Platoons that replace `platoon_share` of each flow, spread evenly over its span."""
+    templates = {p.id: p for p in sc.platoons if p.template}
+    out: list[tuple[PlatoonConfig, str]] = []
+    for i, flow in enumerate(sc.traffic.flows):
+        if flow.platoon_share == 0:
+            continue
+        key = f"traffic.flows[{i}]"
+        template = templates.get(flow.platoon_template or "")
+        if template is None:
+            raise ScenarioError(
+                file, f"{key}.platoon_template",
+                f"no platoon with id '{flow.platoon_template}' and template: true",
+                did_you_mean(flow.platoon_template or "", templates),
+            )  # fmt: skip
+        end_s = flow.end_s if flow.end_s is not None else sc.simulation.end_s
+        per_hour = flow.vehs_per_hour * flow.platoon_share / template.members
+        count = int((end_s - flow.begin_s) * per_hour / 3600.0)
+        period = 3600.0 / per_hour
+        route = RouteConfig(
+            from_edge=flow.from_edge, to_edge=flow.to_edge, via_edges=flow.via_edges
+        )
+        for k in range(count):
+            copy = dataclasses.replace(
+                template, id=f"{template.id}_f{i}_{k}", route=route,
+                depart_s=flow.begin_s + (k + 0.5) * period, template=False,
+            )  # fmt: skip
+            out.append((copy, key))
+    return out
+
+
+def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) -> PlatoonPlan:
     r = p.route
+    assert r is not None  # PlatoonConfig requires it for platoons that drive
     edges = _route_edges(
         network, file, f"{key}.route", r.edges, r.from_edge, r.to_edge, r.via_edges,
         p.vehicle.vclass,

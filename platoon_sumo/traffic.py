@@ -45,7 +45,8 @@ def write_traffic_inputs(plan: RunPlan, directory: Path) -> list[Path]:
                 "type": flow.type or default_type,
                 "begin": repr(flow.begin_s),
                 "end": repr(flow.end_s if flow.end_s is not None else sim.end_s),
-                "vehsPerHour": repr(flow.vehs_per_hour),
+                # the share that drives as platoons is inserted by platoon-sumo instead
+                "vehsPerHour": repr(flow.vehs_per_hour * (1.0 - flow.platoon_share)),
                 "from": flow.from_edge,
                 "to": flow.to_edge,
                 "departLane": "best",

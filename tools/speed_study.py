@@ -198,8 +198,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--speeds", type=float, nargs="+", default=list(DEFAULT_SPEEDS))
     parser.add_argument("--followers", nargs="+", default=list(FOLLOWERS), choices=FOLLOWERS)
-    parser.add_argument("--lap-fraction", type=float, default=1.0,
-                        help="distance driven per run, in laps (after 20 s of start-up)")
+    parser.add_argument(
+        "--lap-fraction",
+        type=float,
+        default=1.0,
+        help="distance driven per run, in laps (after 20 s of start-up)",
+    )
     parser.add_argument("--jobs", type=int, default=2, help="parallel SUMO processes")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "speed_study")
     args = parser.parse_args(argv)  # fmt: skip

@@ -70,7 +70,8 @@ class ForceCutIn:
             return
         gap_lo, gap_hi = w.front_x_m[follow], w.front_x_m[lead] - w.length_m[lead]
         for vid, i in w.index.items():  # a car on the left lane alongside the gap
-            alongside = gap_lo + 6.0 < w.front_x_m[i] < gap_hi - 2.0
+            # its 5 m body fits in the gap with room to spare on both sides
+            alongside = gap_lo + 8.0 < w.front_x_m[i] < gap_hi - 5.0
             left_lane = w.lane_ids[i] in ("left1A1_1", "A1B1_1")
             if not vid.startswith("p.") and left_lane and alongside:
                 # An aggressive driver: only avoids an immediate collision (lcMode bits 8-9 = 1).
@@ -88,7 +89,7 @@ def test_sumo_car_cuts_in_and_the_follower_opens_its_gap(write_scenario, tmp_pat
             # faster than the platoon: they overtake it on the left lane
             "vehicle_types": [{"id": "h", "sigma": 0.0, "max_speed_mps": 10.0}],
             "flows": [{"from_edge": "left1A1", "to_edge": "C1right1", "vehs_per_hour": 1500,
-                       "begin_s": 44.0, "end_s": 60.0, "type": "h"}],
+                       "begin_s": 46.0, "end_s": 60.0, "type": "h"}],
         },
         "platoons": [{
             "id": "p", "members": 2, "spacing_m": 20.0, "depart_s": 45.0, "depart_lane": 0,
@@ -99,7 +100,7 @@ def test_sumo_car_cuts_in_and_the_follower_opens_its_gap(write_scenario, tmp_pat
                          "params": {"time_gap_s": 2.5}},
         }],
     }  # fmt: skip
-    forcing = ForceCutIn(at_s=52.0)
+    forcing = ForceCutIn(at_s=46.0)
     out = run(load_plan(write_scenario(scenario)), tmp_path / "out", [forcing]).directory
     summary = json.loads((out / "summary.json").read_text())
     assert forcing.intruder is not None, "a car was alongside the gap to cut in"
@@ -135,3 +136,26 @@ def test_platoons_on_one_route_are_inserted_whole_when_there_is_room(write_scena
     assert first_seen[["q.0", "q.1", "q.2"]].nunique() == 1
     assert summary["collisions"] == 0
     assert summary["platoons_not_inserted"] == ["late"]
+
+
+def test_platoon_share_turns_part_of_a_flow_into_platoons(write_scenario, tmp_path):
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 300.0, "seed": 4},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "traffic": {"flows": [{"from_edge": "left1A1", "to_edge": "C1right1",
+                               "vehs_per_hour": 480, "platoon_share": 0.25,
+                               "platoon_template": "convoy"}]},
+        "platoons": [{"id": "convoy", "template": True, "members": 3, "spacing_m": 8.0,
+                      "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"}}}],
+    }  # fmt: skip
+    plan = load_plan(write_scenario(scenario))
+    # 480 veh/h x 25 % = 120 platoon vehicles/h = 40 platoons of 3 an hour: one every 90 s
+    assert [p.config.id for p in plan.platoons] == ["convoy_f0_0", "convoy_f0_1", "convoy_f0_2"]
+    assert plan.platoons[1].config.depart_s - plan.platoons[0].config.depart_s == 90.0
+    out = run(plan, tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    trips = pd.read_csv(out / "tripinfo.csv", sep=";")
+    humans = trips[trips["tripinfo_id"].str.startswith("flow0")]
+    assert 25 <= len(humans) <= 32  # the remaining 75 %: 360 veh/h for 300 s = 30
+    assert summary["platoon_vehicles"]["departed"] == 9
+    assert summary["collisions"] == 0

@@ -1,0 +1,57 @@
+"""Platoon metrics: per-step formulas, bounded-memory summaries, SUMO's own outputs.
+
+- `kernels`: one step's formulas (spacing error, time headway, time to collision, jerk,
+  deviation from the predecessor's path, l2 gain).
+- `stats`: `RunStats`, per-vehicle and per-platoon summaries accumulated step by step
+  (the recorder feeds it online; `summarise_trajectories` feeds it a table).
+- `sumo_outputs`: tripinfo (with emissions), summary and edgeData read from SUMO.
+
+Every metric is defined in docs/metrics.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import pandas as pd
+
+from platoon_sumo.metrics.kernels import PathTrail
+from platoon_sumo.metrics.stats import RunStats, table_rows
+
+__all__ = ["RunStats", "follower_metrics", "summarise_trajectories"]
+
+
+def summarise_trajectories(
+    trajectories: pd.DataFrame,
+    planned: Mapping[str, int] | None = None,
+    start_s: float = 0.0,
+) -> RunStats:
+    """Feed a trajectory table to `RunStats`, step by step.
+
+    Tables without `lateral_deviation_m` (hand-built ones) get it by replaying each
+    predecessor's path as the recorder does (every position kept).
+    """
+    replay = "lateral_deviation_m" not in trajectories.columns
+    trails: dict[str, PathTrail] = {}
+    stats = RunStats(planned, start_s)
+    for time_s, rows in table_rows(trajectories):
+        if replay:
+            for row in rows:
+                trails.setdefault(str(row["vehicle_id"]), PathTrail(0.0)).append(
+                    float(row["x_m"]), float(row["y_m"])
+                )
+            for row in rows:
+                pred = row.get("predecessor_id")
+                trail = trails.get(str(pred)) if pred is not None else None
+                row["lateral_deviation_m"] = (
+                    trail.deviation(float(row["x_m"]), float(row["y_m"])) if trail else None
+                )
+        stats.add_step(time_s, rows)
+    return stats
+
+
+def follower_metrics(trajectories: pd.DataFrame) -> dict[str, dict[str, dict[str, Any]]]:
+    """{platoon id: {follower id: metrics}} for every member that had a predecessor (the
+    `followers` entry of summary.json)."""
+    return summarise_trajectories(trajectories).followers()

@@ -1,0 +1,416 @@
+"""Per-vehicle and per-platoon summaries, accumulated step by step in bounded memory.
+
+`RunStats.add_step` takes one step's trajectory rows (dicts keyed by the columns of
+`platoon_sumo.recorder.TRAJECTORY_COLUMNS`); the recorder feeds it online, and
+`summarise_trajectories` feeds it a table, so both give the same numbers. Every
+quantity is a running sum, count, minimum or maximum: memory grows with the number of
+platoon vehicles, never with the run's length. Formulas: docs/metrics.md.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from platoon_sumo.metrics.kernels import l2_gain
+
+Row = Mapping[str, Any]
+
+
+def _num(row: Row, key: str) -> float | None:
+    """A numeric cell, None when missing, empty or NaN."""
+    value = row.get(key)
+    if value is None or value == "":
+        return None
+    value = float(value)
+    return None if math.isnan(value) else value
+
+
+def _text(row: Row, key: str) -> str | None:
+    value = row.get(key)
+    if value is None or value == "" or (isinstance(value, float) and math.isnan(value)):
+        return None
+    return str(value)
+
+
+@dataclass
+class Running:
+    """Count, sum of squares, largest magnitude and smallest value of a series."""
+
+    n: int = 0
+    sum_sq: float = 0.0
+    max_abs: float = 0.0
+    min: float = math.inf
+
+    def add(self, x: float | None) -> None:
+        if x is None:
+            return
+        self.n += 1
+        self.sum_sq += x * x
+        self.max_abs = max(self.max_abs, abs(x))
+        self.min = min(self.min, x)
+
+    def rms(self) -> float | None:
+        return math.sqrt(self.sum_sq / self.n) if self.n else None
+
+    def peak(self) -> float | None:
+        return self.max_abs if self.n else None
+
+    def smallest(self) -> float | None:
+        return self.min if self.n else None
+
+
+@dataclass
+class PairEnergy:
+    """Sums over the steps a follower and its predecessor are both in the window."""
+
+    n: int = 0
+    accel_sq: float = 0.0
+    pred_accel_sq: float = 0.0
+    speed: float = 0.0
+    speed_sq: float = 0.0
+    pred_speed: float = 0.0
+    pred_speed_sq: float = 0.0
+
+    def add(self, accel: float, pred_accel: float, speed: float, pred_speed: float) -> None:
+        self.n += 1
+        self.accel_sq += accel * accel
+        self.pred_accel_sq += pred_accel * pred_accel
+        self.speed += speed
+        self.speed_sq += speed * speed
+        self.pred_speed += pred_speed
+        self.pred_speed_sq += pred_speed * pred_speed
+
+    def accel_gain(self) -> float | None:
+        return l2_gain(self.accel_sq, self.pred_accel_sq) if self.n else None
+
+    def speed_gain(self) -> float | None:
+        """l2 gain of the speed deviations from their mean over the common window."""
+        if not self.n:
+            return None
+        own = max(self.speed_sq - self.speed**2 / self.n, 0.0)
+        pred = max(self.pred_speed_sq - self.pred_speed**2 / self.n, 0.0)
+        return l2_gain(own, pred)
+
+
+@dataclass
+class VehicleStats:
+    vehicle_id: str
+    platoon_id: str
+    member_index: int
+    role: str
+    rows: int = 0
+    steps: int = 0
+    first_time_s: float = math.nan
+    last_time_s: float = math.nan
+    spacing_error: Running = field(default_factory=Running)
+    gap: Running = field(default_factory=Running)
+    ttc: Running = field(default_factory=Running)
+    headway: Running = field(default_factory=Running)
+    accel: Running = field(default_factory=Running)
+    jerk: Running = field(default_factory=Running)
+    lateral: Running = field(default_factory=Running)
+    gap_measurement_error: Running = field(default_factory=Running)
+    pair: PairEnergy = field(default_factory=PairEnergy)
+    seen: bool = False
+    view_steps: int = 0
+    in_view_steps: int = 0
+    had_scan: bool = False
+    has_predecessor: bool = False
+    emergency_brakings: int = 0
+    collisions: int = 0
+    red_light_violations: int = 0
+    cut_ins: int = 0
+    _emergency: bool = False
+    _cut_in: bool = False
+    _previous_gap: float | None = None
+
+    def summary(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "vehicle_id": self.vehicle_id,
+            "platoon_id": self.platoon_id,
+            "member_index": self.member_index,
+            "role": self.role,
+            "steps": self.steps,
+            "first_time_s": self.first_time_s,
+            "last_time_s": self.last_time_s,
+            "rms_spacing_error_m": self.spacing_error.rms(),
+            "max_abs_spacing_error_m": self.spacing_error.peak(),
+            "min_gap_m": self.gap.smallest(),
+            "min_ttc_s": self.ttc.smallest(),
+            "min_time_headway_s": self.headway.smallest(),
+            "rms_accel_mps2": self.accel.rms(),
+            "max_abs_accel_mps2": self.accel.peak(),
+            "rms_jerk_mps3": self.jerk.rms(),
+            "max_abs_jerk_mps3": self.jerk.peak(),
+            "rms_lateral_deviation_m": self.lateral.rms(),
+            "max_lateral_deviation_m": self.lateral.peak(),
+            "rms_gap_measurement_error_m": self.gap_measurement_error.rms(),
+            "in_view_share": self.in_view_share(),
+            "lost_steps": self.view_steps - self.in_view_steps if self.seen else None,
+            "accel_l2_gain": self.pair.accel_gain(),
+            "speed_l2_gain": self.pair.speed_gain(),
+            "cut_ins": self.cut_ins,
+            "emergency_brakings": self.emergency_brakings,
+            "collisions": self.collisions,
+            "red_light_violations": self.red_light_violations,
+        }
+        return out
+
+    def in_view_share(self) -> float | None:
+        if self.seen:
+            return self.in_view_steps / self.view_steps
+        return 0.0 if self.had_scan else None
+
+    def follower_summary(self) -> dict[str, Any]:
+        """The `followers` entry of summary.json (kept from earlier versions)."""
+        s = self.summary()
+        out: dict[str, Any] = {
+            "steps": self.rows,
+            "in_view_share": s["in_view_share"],
+            "lost_scans": s["lost_steps"] if self.seen else (self.view_steps or 0),
+            "min_gap_m": s["min_gap_m"],
+            "rms_spacing_error_m": s["rms_spacing_error_m"],
+        }
+        if self.lateral.n:
+            out["max_lateral_deviation_m"] = s["max_lateral_deviation_m"]
+            out["rms_lateral_deviation_m"] = s["rms_lateral_deviation_m"]
+        return out
+
+
+@dataclass
+class PlatoonStats:
+    platoon_id: str
+    members: int
+    complete_steps: int = 0
+    intact_steps: int = 0
+    splits: int = 0
+    _intact: bool = False
+
+
+class RunStats:
+    """Feed it every step's rows; read `vehicle_summaries()` / `platoon_summaries()`.
+
+    `planned`: members per platoon (from the scenario); platoons not in it count the
+    members seen. Quality metrics use the rows from `start_s` on; event counts
+    (collisions, emergency brakings, red lights, cut-ins) the whole run.
+    """
+
+    def __init__(self, planned: Mapping[str, int] | None = None, start_s: float = 0.0):
+        self.planned = dict(planned or {})
+        self.start_s = start_s
+        self.vehicles: dict[str, VehicleStats] = {}
+        self.platoons: dict[str, PlatoonStats] = {}
+
+    # ------------------------------------------------------------------ feeding
+
+    def _vehicle(self, row: Row) -> VehicleStats:
+        vid = str(row["vehicle_id"])
+        stats = self.vehicles.get(vid)
+        if stats is None:
+            stats = self.vehicles[vid] = VehicleStats(
+                vid, str(row["platoon_id"]), int(row.get("member_index") or 0),
+                str(row.get("role") or ""),
+            )  # fmt: skip
+        return stats
+
+    def add_step(self, time_s: float, rows: Iterable[Row]) -> None:
+        rows = list(rows)
+        by_id = {str(r["vehicle_id"]): r for r in rows}
+        in_window = time_s >= self.start_s - 1e-9
+        for row in rows:
+            v = self._vehicle(row)
+            v.rows += 1
+            if math.isnan(v.first_time_s):
+                v.first_time_s = time_s
+            v.last_time_s = time_s
+            supervisor = _text(row, "supervisor")
+            emergency = supervisor == "emergency"
+            if emergency and not v._emergency:
+                v.emergency_brakings += 1
+            v._emergency = emergency
+            pred_id = _text(row, "predecessor_id")
+            gap = _num(row, "gap_to_predecessor_m")
+            previous_gap, v._previous_gap = v._previous_gap, gap
+            ahead, ahead_gap = _text(row, "ahead_id"), _num(row, "ahead_gap_m")
+            cut_in = (
+                pred_id is not None and ahead is not None and ahead not in by_id
+                and ahead_gap is not None and (gap is None or ahead_gap < gap)
+            )  # fmt: skip
+            if cut_in and not v._cut_in:
+                v.cut_ins += 1
+            v._cut_in = cut_in
+            if not in_window:
+                continue
+            v.steps += 1
+            accel = _num(row, "accel_mps2")
+            v.accel.add(accel)
+            v.jerk.add(_num(row, "jerk_mps3"))
+            if pred_id is None:
+                continue
+            v.has_predecessor = True
+            desired = _num(row, "desired_gap_m")
+            error = _num(row, "spacing_error_m")
+            if error is None and gap is not None and desired is not None:
+                error = gap - desired
+            v.spacing_error.add(error)
+            v.gap.add(gap)
+            v.ttc.add(_num(row, "ttc_s"))
+            v.headway.add(_num(row, "time_headway_s"))
+            v.lateral.add(_num(row, "lateral_deviation_m"))
+            measured = _num(row, "measured_gap_m")
+            if measured is not None and previous_gap is not None:
+                v.gap_measurement_error.add(measured - previous_gap)
+            in_view = _in_view(row)
+            if in_view is not None:
+                v.had_scan = True
+                v.seen = v.seen or in_view
+                if v.seen:
+                    v.view_steps += 1
+                    v.in_view_steps += int(in_view)
+            pred = by_id.get(pred_id)
+            speed = _num(row, "speed_mps")
+            if pred is not None and accel is not None and speed is not None:
+                pa, ps = _num(pred, "accel_mps2"), _num(pred, "speed_mps")
+                if pa is not None and ps is not None:
+                    v.pair.add(accel, pa, speed, ps)
+        if in_window:
+            self._platoon_step(rows)
+
+    def _platoon_step(self, rows: list[Row]) -> None:
+        groups: dict[str, list[Row]] = {}
+        for row in rows:
+            groups.setdefault(str(row["platoon_id"]), []).append(row)
+        for pid, members in groups.items():
+            planned = self.planned.get(pid)
+            if planned is None:
+                planned = max(int(r.get("member_index") or 0) for r in members) + 1
+            p = self.platoons.get(pid)
+            if p is None:
+                p = self.platoons[pid] = PlatoonStats(pid, planned)
+            p.members = max(p.members, len(members))
+            if len(members) < p.members or len(members) < 2:
+                p._intact = False
+                continue
+            p.complete_steps += 1
+            intact = all(
+                _in_view(r) is True for r in members if _text(r, "predecessor_id") is not None
+            )
+            p.intact_steps += int(intact)
+            if p._intact and not intact:
+                p.splits += 1
+            p._intact = intact
+
+    def add_events(
+        self, collisions: Iterable[tuple[str, str]] = (), violations: Iterable[str] = ()
+    ) -> None:
+        """Collisions (pairs of ids, either may be a platoon vehicle) and red-light
+        violations (vehicle ids) found in a step."""
+        for pair in collisions:
+            for vid in pair:
+                if vid in self.vehicles:
+                    self.vehicles[vid].collisions += 1
+        for vid in violations:
+            if vid in self.vehicles:
+                self.vehicles[vid].red_light_violations += 1
+
+    # ------------------------------------------------------------------ results
+
+    def vehicle_summaries(self) -> list[dict[str, Any]]:
+        ordered = sorted(self.vehicles.values(), key=lambda v: (v.platoon_id, v.member_index))
+        return [v.summary() for v in ordered]
+
+    def followers(self) -> dict[str, dict[str, dict[str, Any]]]:
+        out: dict[str, dict[str, dict[str, Any]]] = {}
+        for v in sorted(self.vehicles.values(), key=lambda v: (v.platoon_id, v.vehicle_id)):
+            if v.has_predecessor or _was_follower(v):
+                out.setdefault(v.platoon_id, {})[v.vehicle_id] = v.follower_summary()
+        return out
+
+    def platoon_summaries(self) -> list[dict[str, Any]]:
+        result = []
+        vehicles = self.vehicle_summaries()
+        for pid in sorted({v["platoon_id"] for v in vehicles}):
+            members = [v for v in vehicles if v["platoon_id"] == pid]
+            p = self.platoons.get(pid) or PlatoonStats(pid, self.planned.get(pid, len(members)))
+            result.append(platoon_summary(p, members))
+        return result
+
+
+def _was_follower(v: VehicleStats) -> bool:
+    return v.rows > 0 and v.role == "follower" and v.has_predecessor
+
+
+def _in_view(row: Row) -> bool | None:
+    flag = _num(row, "predecessor_in_view")
+    if flag is not None:
+        return flag > 0
+    rays = _num(row, "predecessor_rays")
+    return None if rays is None else rays > 0
+
+
+def _max(values: Iterable[float | None]) -> float | None:
+    vals = [v for v in values if v is not None]
+    return max(vals) if vals else None
+
+
+def _min(values: Iterable[float | None]) -> float | None:
+    vals = [v for v in values if v is not None]
+    return min(vals) if vals else None
+
+
+def peak_error_ratios(members: Sequence[Mapping[str, Any]]) -> list[float | None]:
+    """max|e_k| / max|e_(k-1)| for consecutive followers (by member index), k >= 2."""
+    followers = sorted(
+        (m for m in members if m.get("max_abs_spacing_error_m") is not None),
+        key=lambda m: m["member_index"],
+    )
+    ratios: list[float | None] = []
+    for prev, cur in itertools.pairwise(followers):
+        den = prev["max_abs_spacing_error_m"]
+        ratios.append(cur["max_abs_spacing_error_m"] / den if den > 0 else None)
+    return ratios
+
+
+def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str, Any]:
+    """One platoons.csv row from the platoon's counters and its members' summaries."""
+    accel_gains = [m["accel_l2_gain"] for m in members]
+    speed_gains = [m["speed_l2_gain"] for m in members]
+    max_accel_gain = _max(accel_gains)
+    return {
+        "platoon_id": p.platoon_id,
+        "members": p.members,
+        "vehicles_seen": len(members),
+        "max_accel_l2_gain": max_accel_gain,
+        "max_speed_l2_gain": _max(speed_gains),
+        "max_spacing_error_peak_ratio": _max(peak_error_ratios(members)),
+        "string_stable": None if max_accel_gain is None else bool(max_accel_gain <= 1.0),
+        "max_rms_spacing_error_m": _max(m["rms_spacing_error_m"] for m in members),
+        "max_abs_spacing_error_m": _max(m["max_abs_spacing_error_m"] for m in members),
+        "min_gap_m": _min(m["min_gap_m"] for m in members),
+        "min_ttc_s": _min(m["min_ttc_s"] for m in members),
+        "max_rms_accel_mps2": _max(m["rms_accel_mps2"] for m in members),
+        "max_rms_jerk_mps3": _max(m["rms_jerk_mps3"] for m in members),
+        "max_lateral_deviation_m": _max(m["max_lateral_deviation_m"] for m in members),
+        "complete_steps": p.complete_steps,
+        "intact_share": p.intact_steps / p.complete_steps if p.complete_steps else None,
+        "splits": p.splits,
+        "cut_ins": sum(m["cut_ins"] for m in members),
+        "collisions": sum(m["collisions"] for m in members),
+        "emergency_brakings": sum(m["emergency_brakings"] for m in members),
+        "red_light_violations": sum(m["red_light_violations"] for m in members),
+    }
+
+
+def table_rows(frame: pd.DataFrame) -> Iterable[tuple[float, list[dict[str, Any]]]]:
+    """(time, rows of that step) of a trajectory table, in time order; NaN -> None."""
+    frame = frame.sort_values("time_s", kind="stable")
+    clean = frame.astype(object).where(frame.notna(), None)
+    for time_s, group in clean.groupby(frame["time_s"], sort=True):
+        yield float(np.float64(time_s)), group.to_dict("records")

@@ -1,0 +1,255 @@
+"""PNG figures of one run (and overlays of several), drawn from a results folder's tables.
+
+matplotlib is imported inside each function with the Agg backend, so importing this
+module never touches a display or picks a backend for the caller.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+DPI = 120
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _colors(n: int) -> list[Any]:
+    plt = _plt()
+    cmap = plt.get_cmap("viridis")
+    return [cmap(x) for x in np.linspace(0.0, 0.85, max(n, 1))]
+
+
+def _members(traj: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """(vehicle id, its rows in time order), ordered by member index."""
+    order = traj.groupby("vehicle_id")["member_index"].first().sort_values()
+    return [(str(v), traj[traj["vehicle_id"] == v].sort_values("time_s")) for v in order.index]
+
+
+def _label(vid: str, rows: pd.DataFrame) -> str:
+    role = rows["role"].iloc[0]
+    return f"{vid} ({role})" if role == "leader" else vid
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.savefig(path, dpi=DPI)
+    _plt().close(fig)
+    return path
+
+
+def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
+    """Every platoon vehicle's path over the lanes of the network (sumolib shapes)."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8.0, 7.0), layout="constrained")
+    x0, x1 = traj["x_m"].min(), traj["x_m"].max()
+    y0, y1 = traj["y_m"].min(), traj["y_m"].max()
+    pad = max(30.0, 0.08 * max(x1 - x0, y1 - y0))
+    if net_file is not None and net_file.is_file():
+        import sumolib
+        from matplotlib.collections import LineCollection
+
+        net = sumolib.net.readNet(str(net_file), withInternal=True)
+        shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
+        ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
+        junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
+        for shape in junctions:
+            ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
+    platoons = sorted(traj["platoon_id"].unique())
+    for pid in platoons:
+        members = _members(traj[traj["platoon_id"] == pid])
+        for (vid, rows), color in zip(members, _colors(len(members)), strict=True):
+            ax.plot(
+                rows["x_m"], rows["y_m"], color=color, lw=1.2, label=_label(vid, rows), zorder=3
+            )
+            ax.plot(rows["x_m"].iloc[0], rows["y_m"].iloc[0], "o", color=color, ms=4, zorder=4)
+            ax.plot(rows["x_m"].iloc[-1], rows["y_m"].iloc[-1], "s", color=color, ms=4, zorder=4)
+    ax.set_xlim(x0 - pad, x1 + pad)
+    ax.set_ylim(y0 - pad, y1 + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("Platoon paths over the network (front bumpers; o start, \u25a0 end)")
+    ax.legend(loc="best", fontsize=8, ncol=1 + len(traj["vehicle_id"].unique()) // 8)
+    ax.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+def spacing_and_speed(traj: pd.DataFrame, platoon_id: str, path: Path) -> Path:
+    """Speed of every member and spacing error of every follower over time."""
+    plt = _plt()
+    members = _members(traj[traj["platoon_id"] == platoon_id])
+    colors = _colors(len(members))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10.0, 7.0), sharex=True, layout="constrained")
+    for (vid, rows), color in zip(members, colors, strict=True):
+        top.plot(rows["time_s"], rows["speed_mps"], color=color, lw=1.2, label=_label(vid, rows))
+        if rows["spacing_error_m"].notna().any():
+            bottom.plot(rows["time_s"], rows["spacing_error_m"], color=color, lw=1.2, label=vid)
+    top.set_ylabel("speed [m/s]")
+    top.set_title(f"Platoon {platoon_id}: speed of every member")
+    bottom.axhline(0.0, color="k", lw=0.8)
+    bottom.set_ylabel("spacing error [m]\n(gap \u2212 desired gap)")
+    bottom.set_xlabel("time [s]")
+    bottom.set_title("Spacing error of every follower (positive: farther back than the policy)")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=8)
+    if not bottom.get_legend_handles_labels()[0]:
+        bottom.text(0.5, 0.5, "no follower with a spacing policy", ha="center",
+                    transform=bottom.transAxes)  # fmt: skip
+    return _save(fig, path)
+
+
+def time_space(traj: pd.DataFrame, platoon_id: str, path: Path) -> Path:
+    """Distance along the route over time (a time-space diagram) of every member."""
+    plt = _plt()
+    members = _members(traj[traj["platoon_id"] == platoon_id])
+    fig, ax = plt.subplots(figsize=(10.0, 6.0), layout="constrained")
+    stop_label = "supervisor holds the vehicle for a signal"
+    for (vid, rows), color in zip(members, _colors(len(members)), strict=True):
+        ax.plot(rows["time_s"], rows["route_s_m"], color=color, lw=1.2, label=_label(vid, rows))
+        stops = rows["supervisor"].astype(str) == "signal"
+        if stops.any():
+            ax.plot(rows["time_s"][stops], rows["route_s_m"][stops], ".", color="red", ms=2,
+                    label=stop_label)  # fmt: skip
+            stop_label = "_nolegend_"
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("distance along the route [m]")
+    ax.set_title(f"Platoon {platoon_id}: time-space diagram (front bumpers)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
+    return _save(fig, path)
+
+
+def string_stability(
+    traj: pd.DataFrame, vehicles: pd.DataFrame, platoon_id: str, path: Path
+) -> Path:
+    """Acceleration of every member over time, and how it grows or shrinks along the
+    platoon (RMS acceleration, peak spacing error and l2 gain per member)."""
+    plt = _plt()
+    members = _members(traj[traj["platoon_id"] == platoon_id])
+    fig, (left, right) = plt.subplots(
+        1, 2, figsize=(12.0, 5.0), layout="constrained", gridspec_kw={"width_ratios": [2, 1]}
+    )
+    for (vid, rows), color in zip(members, _colors(len(members)), strict=True):
+        left.plot(rows["time_s"], rows["accel_mps2"], color=color, lw=1.0, label=_label(vid, rows))
+    left.set_xlabel("time [s]")
+    left.set_ylabel("acceleration [m/s\u00b2]")
+    left.set_title(f"Platoon {platoon_id}: acceleration of every member")
+    left.grid(True, alpha=0.3)
+    left.legend(loc="upper right", fontsize=8)
+    mine = vehicles[vehicles["platoon_id"] == platoon_id].sort_values("member_index")
+    index = mine["member_index"].to_numpy()
+    right.bar(index - 0.2, mine["rms_accel_mps2"].fillna(0.0), width=0.4,
+              label="RMS acceleration [m/s\u00b2]", color="tab:blue")  # fmt: skip
+    right.bar(index + 0.2, mine["max_abs_spacing_error_m"].fillna(0.0), width=0.4,
+              label="peak |spacing error| [m]", color="tab:orange")  # fmt: skip
+    gains = mine["accel_l2_gain"]
+    top = float(np.nanmax([mine["rms_accel_mps2"].max(), mine["max_abs_spacing_error_m"].max(),
+                           0.1]))  # fmt: skip
+    for i, g in zip(index, gains, strict=True):
+        if pd.notna(g):
+            right.text(i, top * 1.04, f"\u03b3={g:.2f}", ha="center", fontsize=8,
+                       color="darkred" if g > 1 else "darkgreen")  # fmt: skip
+    right.set_ylim(0, top * 1.18)
+    right.set_xticks(index)
+    right.set_xlabel("member index (0 = leader)")
+    right.set_title("Along the platoon\n(\u03b3: acceleration l2 gain from the member ahead)",
+                    fontsize=10)  # fmt: skip
+    right.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), fontsize=8, ncol=2)
+    right.grid(True, axis="y", alpha=0.3)
+    return _save(fig, path)
+
+
+def scan_snapshot(npz: Path, path: Path) -> Path | None:
+    """The saved laser scan drawn with `platoon_sumo.sensors.plot.plot_scan`."""
+    from platoon_sumo.sensors.laser import LaserScan
+    from platoon_sumo.sensors.plot import plot_scan
+
+    if not npz.is_file():
+        return None
+    with np.load(npz) as data:
+        meta = json.loads(str(data["meta"]))
+        vid = meta.pop("vehicle_id")
+        scan = LaserScan(ranges=data["ranges"], **meta)
+        rects, segs = data["rectangles"], data["segments"]
+    title = f"Laser scan of {vid} at t = {scan.stamp_s:.1f} s (obstacles as cast)"
+    return Path(plot_scan(scan, rects, segs if len(segs) else None, path, title=title))
+
+
+def compare_bars(table: pd.DataFrame, metrics: Sequence[tuple[str, str]], path: Path) -> Path:
+    """One bar panel per metric, one bar per run."""
+    plt = _plt()
+    n = len(metrics)
+    fig, axes = plt.subplots(1, n, figsize=(3.6 * n, 4.2), layout="constrained", squeeze=False)
+    runs = table["run"].astype(str).tolist()
+    colors = [plt.get_cmap("tab10")(i % 10) for i in range(len(runs))]
+    for ax, (key, label) in zip(axes[0], metrics, strict=True):
+        values = pd.to_numeric(table[key], errors="coerce").fillna(0.0) if key in table else 0.0
+        ax.bar(range(len(runs)), values, color=colors)
+        ax.set_xticks(range(len(runs)))
+        ax.set_xticklabels(runs, rotation=20, ha="right", fontsize=8)
+        ax.set_title(label, fontsize=10)
+        ax.grid(True, axis="y", alpha=0.3)
+        if key == "max_accel_l2_gain":
+            ax.axhline(1.0, color="k", ls="--", lw=0.8)
+    fig.suptitle("Run comparison (worst platoon of each run)")
+    return _save(fig, path)
+
+
+def compare_along(runs: Sequence[tuple[str, pd.DataFrame]], path: Path) -> Path:
+    """Per-member acceleration l2 gain and RMS spacing error, one line per run."""
+    plt = _plt()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11.0, 4.5), layout="constrained")
+    for i, (name, vehicles) in enumerate(runs):
+        color = plt.get_cmap("tab10")(i % 10)
+        for pid, rows in vehicles.groupby("platoon_id"):
+            rows = rows.sort_values("member_index")
+            label = name if vehicles["platoon_id"].nunique() == 1 else f"{name}: {pid}"
+            left.plot(rows["member_index"], rows["accel_l2_gain"], "o-", color=color, label=label)
+            right.plot(rows["member_index"], rows["rms_spacing_error_m"], "o-", color=color,
+                       label=label)  # fmt: skip
+    left.axhline(1.0, color="k", ls="--", lw=0.8)
+    left.set_title("Acceleration l2 gain from the member ahead (< 1: attenuates)", fontsize=10)
+    left.set_ylabel("l2 gain [-]")
+    right.set_title("RMS spacing error", fontsize=10)
+    right.set_ylabel("RMS spacing error [m]")
+    for ax in (left, right):
+        ax.set_xlabel("member index (0 = leader)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+        ax.xaxis.get_major_locator().set_params(integer=True)
+    return _save(fig, path)
+
+
+def compare_speeds(runs: Sequence[tuple[str, pd.DataFrame]], path: Path) -> Path:
+    """Speed of the first and the last member of each run's first platoon over time."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(10.0, 5.0), layout="constrained")
+    for i, (name, traj) in enumerate(runs):
+        color = plt.get_cmap("tab10")(i % 10)
+        first = sorted(traj["platoon_id"].unique())[0]
+        members = _members(traj[traj["platoon_id"] == first])
+        (lead_id, lead), (last_id, last) = members[0], members[-1]
+        ax.plot(lead["time_s"], lead["speed_mps"], color=color, lw=1.0, ls="--",
+                label=f"{name}: {lead_id} (first)")  # fmt: skip
+        ax.plot(last["time_s"], last["speed_mps"], color=color, lw=1.4,
+                label=f"{name}: {last_id} (last)")  # fmt: skip
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed [m/s]")
+    ax.set_title("Speed of the first and last member of each run's platoon")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)

@@ -1,0 +1,137 @@
+"""Summaries on hand-built trajectories with known answers (docs/metrics.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from platoon_sumo.metrics import summarise_trajectories
+from platoon_sumo.metrics.stats import PlatoonStats, RunStats, platoon_summary
+
+DT = 0.1
+
+
+def platoon_table(n_steps: int = 50, gain: float = 0.5) -> pd.DataFrame:
+    """Three members on a straight road. The leader's acceleration is a(t) = sin(t); each
+    follower's is `gain` times its predecessor's, sample by sample, so every l2 gain is
+    exactly `gain`. Gaps and desired gaps are set to give known spacing errors."""
+    rows = []
+    for k in range(n_steps):
+        t = k * DT
+        a0 = math.sin(t)
+        for i in range(3):
+            accel = a0 * gain**i
+            speed = 10.0 + accel  # a speed signal with the same gain structure
+            row = dict(
+                time_s=t, vehicle_id=f"p.{i}", platoon_id="p", member_index=i,
+                role="leader" if i == 0 else "follower", x_m=100.0 - 20.0 * i + k,
+                y_m=0.0, speed_mps=speed, accel_mps2=accel,
+                jerk_mps3=None if k == 0 else (accel - math.sin(t - DT) * gain**i) / DT,
+                lateral_deviation_m=None, predecessor_rays=None, supervisor=None,
+            )  # fmt: skip
+            if i > 0:
+                error = (1.0 if k % 2 else -1.0) * i  # |e| = i: rms i, peak i
+                row.update(
+                    predecessor_id=f"p.{i - 1}", desired_gap_m=15.0,
+                    gap_to_predecessor_m=15.0 + error, ttc_s=4.0 + i + k,
+                    time_headway_s=1.5 + k * 0.01, lateral_deviation_m=0.1 * i,
+                    predecessor_rays=0 if (i == 2 and k in (10, 11)) else 5,
+                    predecessor_in_view=0 if (i == 2 and k in (10, 11)) else 1,
+                )  # fmt: skip
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def test_vehicle_summaries_have_the_known_values():
+    stats = summarise_trajectories(platoon_table(), planned={"p": 3})
+    v = {s["vehicle_id"]: s for s in stats.vehicle_summaries()}
+    for i in (1, 2):
+        s = v[f"p.{i}"]
+        assert s["rms_spacing_error_m"] == pytest.approx(i)
+        assert s["max_abs_spacing_error_m"] == pytest.approx(i)
+        assert s["min_gap_m"] == pytest.approx(15.0 - i)
+        assert s["min_ttc_s"] == pytest.approx(4.0 + i)
+        assert s["min_time_headway_s"] == pytest.approx(1.5)
+        assert s["rms_lateral_deviation_m"] == pytest.approx(0.1 * i)
+        assert s["max_lateral_deviation_m"] == pytest.approx(0.1 * i)
+        assert s["accel_l2_gain"] == pytest.approx(0.5)
+        assert s["speed_l2_gain"] == pytest.approx(0.5)
+    t = np.arange(50) * DT
+    assert v["p.0"]["rms_accel_mps2"] == pytest.approx(np.sqrt(np.mean(np.sin(t) ** 2)))
+    jerk = np.diff(np.sin(t)) / DT
+    assert v["p.0"]["rms_jerk_mps3"] == pytest.approx(np.sqrt(np.mean(jerk**2)))
+    assert v["p.0"]["accel_l2_gain"] is None  # the leader has no predecessor
+    assert v["p.1"]["in_view_share"] == 1.0
+    assert v["p.2"]["in_view_share"] == pytest.approx(48 / 50)
+    assert v["p.2"]["lost_steps"] == 2
+
+
+def test_platoon_summary_string_stability_and_intactness():
+    stats = summarise_trajectories(platoon_table(gain=0.5), planned={"p": 3})
+    (p,) = stats.platoon_summaries()
+    assert p["max_accel_l2_gain"] == pytest.approx(0.5)
+    assert p["string_stable"] is True
+    # peak |e|: 1 for p.1, 2 for p.2
+    assert p["max_spacing_error_peak_ratio"] == pytest.approx(2.0)
+    assert p["intact_share"] == pytest.approx(48 / 50)
+    assert p["splits"] == 1  # intact -> not intact once (k = 10)
+    assert p["min_gap_m"] == pytest.approx(13.0)
+    unstable = summarise_trajectories(platoon_table(gain=1.5)).platoon_summaries()[0]
+    assert unstable["max_accel_l2_gain"] == pytest.approx(1.5)
+    assert unstable["string_stable"] is False
+
+
+def test_metrics_window_and_event_counts():
+    table = platoon_table()
+    table.loc[(table.vehicle_id == "p.1") & (table.time_s.between(0.05, 0.25)), "supervisor"] = (
+        "emergency"
+    )
+    table.loc[(table.vehicle_id == "p.1") & (table.time_s.between(3.0, 3.15)), "supervisor"] = (
+        "emergency"
+    )
+    stats = summarise_trajectories(table, start_s=2.0)
+    s = {v["vehicle_id"]: v for v in stats.vehicle_summaries()}["p.1"]
+    assert s["steps"] == 30  # t = 2.0 .. 4.9
+    assert s["emergency_brakings"] == 2  # events count over the whole run
+    stats.add_events([("p.1", "bg7")], ["p.2"])
+    s = {v["vehicle_id"]: v for v in stats.vehicle_summaries()}
+    assert s["p.1"]["collisions"] == 1 and s["p.2"]["red_light_violations"] == 1
+
+
+def test_cut_in_counts_a_stranger_between_follower_and_predecessor_once():
+    stats = RunStats()
+    for k in range(6):
+        ahead = ("bg1", 5.0) if 2 <= k <= 4 else ("p.0", 15.0)
+        stats.add_step(k * DT, [
+            dict(vehicle_id="p.0", platoon_id="p", member_index=0, role="leader",
+                 accel_mps2=0.0, speed_mps=10.0),
+            dict(vehicle_id="p.1", platoon_id="p", member_index=1, role="follower",
+                 predecessor_id="p.0", gap_to_predecessor_m=15.0, ahead_id=ahead[0],
+                 ahead_gap_m=ahead[1], accel_mps2=0.0, speed_mps=10.0),
+        ])  # fmt: skip
+    follower = stats.vehicle_summaries()[1]
+    assert follower["cut_ins"] == 1
+
+
+def test_gap_measurement_error_compares_with_the_previous_true_gap():
+    stats = RunStats()
+    for k, (gap, measured) in enumerate([(10.0, None), (11.0, 10.5), (12.0, 11.5)]):
+        stats.add_step(k * DT, [
+            dict(vehicle_id="p.1", platoon_id="p", member_index=1, role="follower",
+                 predecessor_id="p.0", gap_to_predecessor_m=gap, measured_gap_m=measured),
+        ])  # fmt: skip
+    # measured at the start of steps 1 and 2 vs the true gaps 10 and 11: errors 0.5, 0.5
+    assert stats.vehicle_summaries()[0]["rms_gap_measurement_error_m"] == pytest.approx(0.5)
+
+
+def test_platoon_summary_without_followers_has_no_stability_figure():
+    p = platoon_summary(PlatoonStats("solo", 1), [dict(
+        vehicle_id="solo.0", member_index=0, accel_l2_gain=None, speed_l2_gain=None,
+        max_abs_spacing_error_m=None, rms_spacing_error_m=None, min_gap_m=None, min_ttc_s=None,
+        rms_accel_mps2=0.3, rms_jerk_mps3=1.0, max_lateral_deviation_m=None, cut_ins=0,
+        collisions=0, emergency_brakings=0, red_light_violations=0)])  # fmt: skip
+    assert p["max_accel_l2_gain"] is None and p["string_stable"] is None
+    assert p["intact_share"] is None
