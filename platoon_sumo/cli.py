@@ -91,6 +91,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             "depart_pos_m or first edge)"
         )
         print(f"warning: platoon '{pid}' was never inserted: {why}", file=sys.stderr)
+    for removed in s.get("removed_off_route", []):
+        print(f"warning: taken out of the run: {removed['reason']}", file=sys.stderr)
     pv = s["platoon_vehicles"]
     print(
         f"{s['scenario']}: {s['simulated_s']:.0f} s simulated in {s['wall_clock_s']:.1f} s "

@@ -101,6 +101,15 @@ class Collision:
 
 
 @dataclass(frozen=True)
+class RemovedVehicle:
+    """A platoon vehicle SUMO could not place on its route any more (taken out)."""
+
+    time_s: float
+    vehicle_id: str
+    reason: str
+
+
+@dataclass(frozen=True)
 class RedLightViolation:
     time_s: float
     vehicle_id: str
@@ -137,6 +146,7 @@ class RunCounters:
     sumo_collisions: int = 0
     teleports: int = 0
     emergency_brakings: int = 0
+    removed_off_route: list[RemovedVehicle] = field(default_factory=list)
     platoon_arrived: list[str] = field(default_factory=list)
     platoon_departed: list[str] = field(default_factory=list)
     arrived_total: int = 0
@@ -258,8 +268,9 @@ class CoSimulation:
         if key not in self._paths:
             spacing = min(max(platoon.config.vehicle.length_m / 8, 0.02), 0.5)
             self._paths[key] = self.plan.network.route_path(
-                platoon.edges, spacing_m=spacing, first_lane=platoon.depart_lane
-            )
+                platoon.edges, spacing_m=spacing, first_lane=platoon.depart_lane,
+                vclass=platoon.config.vehicle.vclass,
+            )  # fmt: skip
         return self._paths[key]
 
     def _handle_departures(self, world: WorldSnapshot) -> None:
@@ -405,7 +416,14 @@ class CoSimulation:
                 fy.append(by)
                 yaws.append(float(new.yaw_rad[k]))
                 speeds.append(float(new.speed_mps[k]))
-        self.backend.move(ids, np.array(fx), np.array(fy), np.array(yaws), np.array(speeds))
+        failed = self.backend.move(
+            ids, np.array(fx), np.array(fy), np.array(yaws), np.array(speeds)
+        )
+        for vid, reason in failed.items():  # off its route: out of the run, reported
+            self.backend.discard(vid)
+            self.backend.forget([vid])
+            del self.active[vid]
+            self.counters.removed_off_route.append(RemovedVehicle(world.time_s, vid, reason))
 
     # ------------------------------------------------------------------ bookkeeping
 
@@ -489,7 +507,12 @@ class CoSimulation:
         rects = self.rects
         subjects = np.array([world.index[vid] for vid in self.active if vid in world.index])
         pairs = overlapping_pairs(rects, subjects) if len(subjects) else np.empty((0, 2), int)
-        now = {tuple(sorted((world.ids[i], world.ids[j]))) for i, j in pairs}
+        network = self.plan.network
+        now = {
+            tuple(sorted((world.ids[i], world.ids[j])))
+            for i, j in pairs
+            if network.same_level(world.lane_ids[i], world.lane_ids[j])
+        }
         if self.static_segments is not None and len(subjects):
             hits = rectangles_crossing_segments(rects[subjects], self.static_segments)
             now |= {(world.ids[subjects[i]], WALL) for i in np.unique(hits[:, 0])}

@@ -170,6 +170,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     wall_s = time.perf_counter() - wall_start
     summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
     summary["platoons_not_inserted"] = sorted(p.config.id for p in sim.pending_platoons)
+    summary["removed_off_route"] = [dataclasses.asdict(r) for r in counters.removed_off_route]
     summary.update(_platoon_events(sim.links.events))
     summary["followers"] = stats.followers()
     trips, sumo_summary, edgedata = read_run_outputs(directory)

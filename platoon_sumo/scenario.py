@@ -639,7 +639,7 @@ def _route_edges(
 ) -> tuple[str, ...]:
     try:
         if edges:
-            network.check_edges(edges)
+            network.check_edges(edges, vclass)
             return edges
         assert from_edge is not None and to_edge is not None
         return tuple(network.shortest_route(from_edge, to_edge, via, vclass))
@@ -693,13 +693,25 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
     )  # fmt: skip
     first = edges[0]
     lanes = network.lane_count(first)
-    depart_lane = p.depart_lane if p.depart_lane is not None else 0
+    vclass = p.vehicle.vclass
+    allowed = network.first_lane_allowing(first, vclass)
+    depart_lane = p.depart_lane if p.depart_lane is not None else allowed
+    if depart_lane is None:
+        raise ScenarioError(
+            file, f"{key}.route", f"no lane of the first edge '{first}' allows vClass {vclass}"
+        )
     if not 0 <= depart_lane < lanes:
         raise ScenarioError(
             file,
             f"{key}.depart_lane",
             f"edge '{first}' has lanes 0..{lanes - 1}, got {depart_lane}",
         )
+    if not network.lane_allows(first, depart_lane, vclass):
+        raise ScenarioError(
+            file, f"{key}.depart_lane",
+            f"lane {depart_lane} of edge '{first}' does not allow vClass {vclass}",
+            f"lane {allowed} is the rightmost that does",
+        )  # fmt: skip
     need = p.members * p.vehicle.length_m + (p.members - 1) * p.spacing_m
     edge_len = network.edge_length_m(first)
     depart_pos = p.depart_pos_m if p.depart_pos_m is not None else need + 0.1

@@ -50,3 +50,42 @@ def test_shortest_route_connects_from_and_to(grid):
     edges = grid.shortest_route("left0A0", "C2right2")
     grid.check_edges(edges)
     assert edges[0] == "left0A0" and edges[-1] == "C2right2"
+
+
+def test_lanes_that_share_no_junction_are_on_different_levels(grid):
+    assert grid.same_level("A0B0_0", "B0A0_1")  # the two directions of one road
+    assert grid.same_level("A0B0_0", ":B0_3_0")  # a road and the junction it enters
+    assert grid.same_level("A0B0_0", "B0B1_0")  # consecutive roads share B0
+    assert not grid.same_level("A0B0_0", "A2B2_0")  # far apart: no common junction
+    assert grid.same_level("", "A0B0_0")  # unknown: assume they can touch
+
+
+def test_routes_respect_vclass_and_reject_u_turns(tmp_path):
+    import subprocess
+
+    from platoon_sumo.sumo.backend import sumo_binary
+
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="A" x="0" y="0"/><node id="B" x="200" y="0"/>'
+        '<node id="C" x="400" y="0"/></nodes>'
+    )
+    (tmp_path / "n.edg.xml").write_text(
+        "<edges>"
+        '<edge id="AB" from="A" to="B" numLanes="2"><lane index="0" allow="bicycle"/></edge>'
+        '<edge id="BC" from="B" to="C" numLanes="1"/><edge id="CB" from="C" to="B" numLanes="1"/>'
+        '<edge id="BA" from="B" to="A" numLanes="1"/></edges>'
+    )
+    net_file = tmp_path / "n.net.xml"
+    subprocess.run(
+        [sumo_binary("netconvert"), "-n", str(tmp_path / "n.nod.xml"),
+         "-e", str(tmp_path / "n.edg.xml"), "-o", str(net_file)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    net = Network(net_file)
+    assert net.first_lane_allowing("AB", "passenger") == 1  # lane 0 is a bicycle lane
+    assert not net.lane_allows("AB", 0, "passenger")
+    net.check_edges(["AB", "BC"], vclass="passenger")
+    with pytest.raises(RouteError, match="U-turn"):
+        net.check_edges(["BC", "CB"])
+    with pytest.raises(RouteError, match="U-turn"):
+        net.shortest_route("BC", "BA")  # only reachable by turning around at C

@@ -65,6 +65,8 @@ class SumoOptions:
             "--collision.check-junctions", "true",
             "--no-step-log", "true",
             "--no-warnings", "true",
+            # a collision is a real overlap, not a gap below minGap (platoons drive closer)
+            "--collision.mingap-factor", "0",
             "--duration-log.disable", "true",
             "--xml-validation", "never",
         ]  # fmt: skip
@@ -235,20 +237,32 @@ class SumoBackend:
         front_y_m: NDArray[np.float64],
         yaw_rad: NDArray[np.float64],
         speed_mps: NDArray[np.float64],
-    ) -> None:
-        """Place platoon vehicles at the next step (front bumper, SUMO's angle convention)."""
+    ) -> dict[str, str]:
+        """Place platoon vehicles at the next step (front bumper, SUMO's angle convention).
+
+        Returns the vehicles SUMO could not place on their route, with SUMO's reason; the
+        caller decides what happens to them (one lost vehicle must not end a long run)."""
         angles = (90.0 - np.degrees(yaw_rad)) % 360.0
         veh = libsumo.vehicle
+        failed: dict[str, str] = {}
         for i, vid in enumerate(vehicle_ids):
             try:
                 veh.moveToXY(vid, "", -1, float(front_x_m[i]), float(front_y_m[i]),
                              float(angles[i]), keepRoute=1)  # fmt: skip
                 veh.setPreviousSpeed(vid, float(speed_mps[i]))
             except libsumo.TraCIException as exc:
-                raise SumoError(
-                    f"cannot move vehicle '{vid}' to ({front_x_m[i]:.2f}, {front_y_m[i]:.2f}) "
+                failed[vid] = (
+                    f"cannot place '{vid}' at ({front_x_m[i]:.2f}, {front_y_m[i]:.2f}) "
                     f"at t={self.time_s:.2f} s: {exc}"
-                ) from None
+                )
+        return failed
+
+    def discard(self, vehicle_id: str) -> None:
+        """Take a platoon vehicle out that can no longer be placed on its route."""
+        try:
+            libsumo.vehicle.remove(vehicle_id, libsumo.constants.REMOVE_VAPORIZED)
+        except libsumo.TraCIException as exc:
+            raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
 
     def remove(self, vehicle_id: str) -> None:
         """Take a platoon vehicle out at the end of its route, as an arrival (tripinfo)."""

@@ -40,6 +40,7 @@ class _Link:
     from_lane: int
     to_lane: int
     via_lane_ids: tuple[str, ...]
+    turnaround: bool = False
 
 
 class Network:
@@ -94,25 +95,45 @@ class Network:
             segments.append(np.hstack([pts[:-1], pts[1:]]))
         return np.vstack(segments) if segments else np.empty((0, 4))
 
+    @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
+    def lane_nodes(self, lane_id: str) -> frozenset[str]:
+        """Junctions a lane touches: its edge's two ends, or the junction it lies in."""
+        if lane_id.startswith(":"):
+            return frozenset({lane_id[1:].rsplit("_", 2)[0]})
+        edge = self._normal_edges.get(lane_id.rsplit("_", 1)[0])
+        if edge is None:
+            return frozenset()
+        return frozenset({edge.getFromNode().getID(), edge.getToNode().getID()})
+
+    def same_level(self, lane_a: str, lane_b: str) -> bool:
+        """Can vehicles on these lanes touch? Lanes that cross without sharing a junction
+        (a bridge over a road; nets carry no heights) cannot. Unknown lanes: assume yes."""
+        a, b = self.lane_nodes(lane_a), self.lane_nodes(lane_b)
+        return not a or not b or bool(a & b)
+
     def tls_ids(self) -> list[str]:
         return sorted(t.getID() for t in self._net.getTrafficLights())
 
-    def check_edges(self, edges: Sequence[str]) -> None:
-        """Raise RouteError if an edge is unknown or two consecutive edges do not connect."""
+    def check_edges(self, edges: Sequence[str], vclass: str = "passenger") -> None:
+        """Raise RouteError if an edge is unknown, two consecutive edges do not connect for
+        `vclass`, or the route turns around (a U-turn no vehicle model here can drive)."""
         if not edges:
             raise RouteError("a route needs at least one edge")
-        for i, edge_id in enumerate(edges):
-            if edge_id not in self._normal_edges:
-                raise RouteError(
-                    f"unknown edge '{edge_id}'", index=i, hint=self.edge_suggestion(edge_id)
-                )
+        self.check_edges_exist(edges)
         for i, (a, b) in enumerate(itertools.pairwise(edges)):
-            if not self._links(a, b):
+            links = self._links(a, b, vclass)
+            if not links:
                 successors = sorted(e.getID() for e in self._normal_edges[a].getOutgoing())
                 raise RouteError(
-                    f"edge '{a}' does not connect to '{b}' (successors of '{a}': "
-                    f"{', '.join(successors) or 'none'})",
+                    f"edge '{a}' does not connect to '{b}' for vClass {vclass} (successors "
+                    f"of '{a}': {', '.join(successors) or 'none'})",
                     index=i + 1,
+                )
+            if all(link.turnaround for link in links):
+                raise RouteError(
+                    f"the route turns around from '{a}' into '{b}' (a U-turn)",
+                    index=i + 1,
+                    hint="choose other from/to edges or add via_edges that avoid it",
                 )
 
     def shortest_route(
@@ -129,7 +150,21 @@ class Network:
             if not found:
                 raise RouteError(f"no route from edge '{a}' to edge '{b}' for vClass {vclass}")
             route.extend(e.getID() for e in found[1:])
+        try:
+            self.check_edges(route, vclass)
+        except RouteError as exc:
+            raise RouteError(f"the fastest route {exc}", None, exc.hint) from None
         return route
+
+    def first_lane_allowing(self, edge_id: str, vclass: str) -> int | None:
+        """Index of the rightmost lane of the edge that `vclass` may use (None: none)."""
+        for lane in self._normal_edges[edge_id].getLanes():
+            if lane.allows(vclass):
+                return int(lane.getIndex())
+        return None
+
+    def lane_allows(self, edge_id: str, index: int, vclass: str) -> bool:
+        return bool(self._normal_edges[edge_id].getLane(index).allows(vclass))
 
     def check_edges_exist(self, edges: Sequence[str]) -> None:
         for i, edge_id in enumerate(edges):
@@ -139,11 +174,13 @@ class Network:
                 )
 
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one Network per run, bounded cache
-    def _links(self, from_edge: str, to_edge: str) -> tuple[_Link, ...]:
+    def _links(self, from_edge: str, to_edge: str, vclass: str = "passenger") -> tuple[_Link, ...]:
         edge = self._normal_edges[from_edge]
         target = self._normal_edges.get(to_edge)
         links = []
         for conn in edge.getOutgoing().get(target, []):
+            if not (conn.getFromLane().allows(vclass) and conn.getToLane().allows(vclass)):
+                continue
             vias: list[str] = []
             via_id = conn.getViaLaneID()
             while via_id:
@@ -151,12 +188,21 @@ class Network:
                 nxt = [c.getViaLaneID() for c in self._net.getLane(via_id).getOutgoing()]
                 via_id = nxt[0] if nxt else ""
             links.append(
-                _Link(conn.getFromLane().getIndex(), conn.getToLane().getIndex(), tuple(vias))
+                _Link(
+                    conn.getFromLane().getIndex(),
+                    conn.getToLane().getIndex(),
+                    tuple(vias),
+                    conn.getDirection() == "t",
+                )
             )
         return tuple(links)
 
     def route_path(
-        self, edges: Sequence[str], spacing_m: float, first_lane: int | None = None
+        self,
+        edges: Sequence[str],
+        spacing_m: float,
+        first_lane: int | None = None,
+        vclass: str = "passenger",
     ) -> RoutePath:
         """Centre-line of `edges` from the start of the first to the end of the last edge.
 
@@ -164,8 +210,8 @@ class Network:
         fewest lane changes first, then the rightmost lanes. A lane change within an edge
         is a smooth lateral blend over the middle of that edge.
         """
-        self.check_edges(edges)
-        links = self._choose_links(edges, first_lane)
+        self.check_edges(edges, vclass)
+        links = self._choose_links(edges, first_lane, vclass)
         pieces: list[np.ndarray] = []
         lane_ids: list[str] = []
         speeds: list[float] = []
@@ -192,9 +238,11 @@ class Network:
                 entry_lane = links[i].to_lane
         return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m)
 
-    def _choose_links(self, edges: Sequence[str], first_lane: int | None) -> list[_Link]:
+    def _choose_links(
+        self, edges: Sequence[str], first_lane: int | None, vclass: str
+    ) -> list[_Link]:
         """One connection per junction: fewest lane changes, then rightmost lanes."""
-        options = [self._links(a, b) for a, b in itertools.pairwise(edges)]
+        options = [self._links(a, b, vclass) for a, b in itertools.pairwise(edges)]
         if not options:
             return []
         change_cost = 100  # one lane change outweighs any preference for the right lane
