@@ -30,7 +30,13 @@ from platoon_sumo.sensors.raycast import scan_many
 from platoon_sumo.sumo.backend import SumoBackend
 from platoon_sumo.supervisor import EMERGENCY, supervise
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
-from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
+from platoon_sumo.world import (
+    LaneChangeAhead,
+    LinkAhead,
+    SignalAhead,
+    VehicleAhead,
+    WorldSnapshot,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -57,6 +63,7 @@ class PlatoonVehicle:
     """"" when the command passed unchanged, else what the supervisor enforced."""
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
+    lane_change: LaneChangeAhead | None = None
     vehicle_ahead: VehicleAhead | None = None
     scan: LaserScan | None = None
     predecessor_id: str | None = None
@@ -374,6 +381,7 @@ class CoSimulation:
                 path=v.path,
                 signal=v.signal,
                 link_ahead=v.link_ahead,
+                lane_change=v.lane_change,
                 vehicle_ahead=v.vehicle_ahead,
                 scan=v.scan,
             )
@@ -438,6 +446,7 @@ class CoSimulation:
             previous, v.signal = v.signal, self.backend.next_signal(v.id)
             v.vehicle_ahead = self.backend.vehicle_ahead(v.id, self._ahead_horizon_m(v))
             v.link_ahead = self.backend.link_ahead(v.id)
+            v.lane_change = self._lane_change_ahead(v)
             if (
                 previous is not None
                 and previous.state in ("r", "u")
@@ -455,6 +464,45 @@ class CoSimulation:
                 self.counters.platoon_arrived.append(v.id)
                 self.counters.arrived_total += 1
         return violations
+
+    def _lane_change_ahead(self, v: PlatoonVehicle) -> LaneChangeAhead | None:
+        """Is the target lane of the next lane change free for the whole move?
+
+        Each vehicle on the target lane(s) is moved forward at its own speed and compared
+        with where we will be at five instants of the move (entering to completing it):
+        it must stay a time gap of its own behind us or a gap of ours ahead. During the
+        move, the nearest vehicle ahead on the target lane is reported for braking.
+        """
+        change = v.path.next_lane_change(v.route_s_m)
+        if change is None:
+            return None
+        distance = change.begin_s_m - v.route_s_m
+        speed = float(v.state.speed_mps[0])
+        length = v.platoon.config.vehicle.length_m
+        if distance > max(60.0, 8.0 * speed) + 10.0 * length:
+            return None
+        occupants = [
+            o for lane in change.target_lane_ids for o in self.backend.lane_occupants(lane)
+        ]
+        move_m = change.end_s_m - change.begin_s_m
+        if distance <= 0.0:  # under way: only the vehicle ahead in the target lane matters
+            own = change.begin_lane_pos_m - distance
+            ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
+                     if pos - other_len > own - 1e-9]  # fmt: skip
+            leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
+            return LaneChangeAhead(distance, clear=True, target_leader=leader)
+        pace = max(speed, 5.0)
+        for k in range(5):
+            along = k / 4.0 * move_m
+            t = (distance + along) / pace
+            own = change.begin_lane_pos_m + along
+            for _, pos, other_speed, other_len in occupants:
+                predicted = pos + other_speed * t
+                behind = predicted < own - length - (3.0 + 1.2 * other_speed)
+                ahead_ok = predicted - other_len > own + 3.0 + 0.6 * pace
+                if not (behind or ahead_ok):
+                    return LaneChangeAhead(distance, clear=False)
+        return LaneChangeAhead(distance, clear=True)
 
     @staticmethod
     def _ahead_horizon_m(v: PlatoonVehicle) -> float:

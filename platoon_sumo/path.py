@@ -23,6 +23,18 @@ class PathPoint:
     lateral_offset_m: float
 
 
+@dataclass(frozen=True)
+class LaneChange:
+    """A stretch of the path that moves sideways into other lanes of the same edge."""
+
+    begin_s_m: float
+    end_s_m: float
+    target_lane_ids: tuple[str, ...]
+    """The lanes entered, in order (one for a single change)."""
+    begin_lane_pos_m: float = 0.0
+    """Where it begins, measured along the target lanes from their start."""
+
+
 @dataclass(frozen=True, eq=False)
 class RoutePath:
     """Centre-line of a route, resampled every `spacing_m`.
@@ -37,6 +49,11 @@ class RoutePath:
     lane_index: NDArray[np.int64]
     lane_ids: tuple[str, ...]
     lane_width_m: FloatArray
+    lane_changes: tuple[LaneChange, ...] = ()
+
+    def next_lane_change(self, s_m: float) -> LaneChange | None:
+        """The lane change under way at arc length `s_m`, or the next one (None: no more)."""
+        return next((c for c in self.lane_changes if c.end_s_m > s_m), None)
 
     @classmethod
     def from_pieces(
@@ -46,6 +63,7 @@ class RoutePath:
         speed_limits_mps: Sequence[float],
         lane_widths_m: Sequence[float],
         spacing_m: float,
+        lane_changes: Sequence[LaneChange] = (),
     ) -> RoutePath:
         """Join per-lane polylines (each (k, 2)) into one path resampled at `spacing_m`."""
         if spacing_m <= 0:
@@ -81,6 +99,7 @@ class RoutePath:
             lane_index=lane_of_point,
             lane_ids=tuple(lane_ids),
             lane_width_m=np.asarray(lane_widths_m, dtype=np.float64)[lane_of_point],
+            lane_changes=tuple(lane_changes),
         )
 
     @property

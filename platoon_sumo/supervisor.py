@@ -30,6 +30,9 @@ class SupervisorConfig:
     yield_at_junctions: bool = True
     """On a minor approach, stop before the junction while SUMO sees it closed or contested
     (SUMO's own gap acceptance for this vehicle)."""
+    wait_for_lane_change_gap: bool = True
+    """Before a lane change of the route, wait (slow down, or stop where it begins) until
+    the target lane has a gap: the move itself is then not interrupted."""
     emergency_braking: bool = True
     """Brake at full capability when the vehicle ahead (SUMO's ground truth) is too close."""
     emergency_gap_m: float = 0.5
@@ -43,7 +46,7 @@ class SupervisorConfig:
 
 
 #: Supervisor states recorded per step ("" when the controller's command passed unchanged).
-SIGNAL, YIELD, EMERGENCY = "signal", "yield", "emergency"
+SIGNAL, YIELD, MERGE, EMERGENCY = "signal", "yield", "merge", "emergency"
 
 
 def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:
@@ -66,8 +69,19 @@ def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> t
         )  # fmt: skip
         if speed > limit:
             speed, state = limit, YIELD
-    if config.emergency_braking and obs.vehicle_ahead is not None:
-        ahead = obs.vehicle_ahead
+    change = obs.lane_change
+    if config.wait_for_lane_change_gap and change is not None and not change.clear:
+        wait = SignalAhead("lane change", -1, "r", change.distance_m)
+        limit = signal_speed_limit(
+            wait, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
+            config.yellow_max_decel_mps2, config.stop_margin_m,
+        )  # fmt: skip
+        if speed > limit:
+            speed, state = limit, MERGE
+    leaders = [obs.vehicle_ahead, change.target_leader if change is not None else None]
+    for ahead in leaders if config.emergency_braking else ():
+        if ahead is None:
+            continue
         # Reaction time of one step: the brake acts on the next command.
         limit = safe_following_speed(
             ahead.gap_m, ahead.speed_mps, config.emergency_gap_m, obs.limits.max_decel_mps2,

@@ -74,3 +74,15 @@ class LinkAhead:
     def must_yield(self) -> bool:
         """A minor approach that SUMO sees closed or contested."""
         return not self.has_priority and (not self.is_open or self.has_foe)
+
+
+@dataclass(frozen=True)
+class LaneChangeAhead:
+    """The next lane change on the route and whether the target lane has room for it."""
+
+    distance_m: float
+    """From the front bumper to where the sideways move begins."""
+    clear: bool
+    """No vehicle on the target lane(s) is predicted near us at any point of the move."""
+    target_leader: VehicleAhead | None = None
+    """During the move: the nearest vehicle ahead on the target lane(s)."""

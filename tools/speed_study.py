@@ -4,10 +4,14 @@ Runs `scenarios/paper_world.yaml` at increasing leader speeds, once with the pap
 follower (Algorithm 2) and once with platoon-sumo's `laser_follower`, both on the
 paper's follower scan, and reports for each run whether the platoon stayed intact:
 every follower kept its predecessor in its scan at every scan after first seeing it,
-and no collision happened. Writes a Markdown table, a CSV and a PNG.
+and no collision happened (with anything: another robot or a wall). Writes a Markdown
+table, a CSV, a JSON and a PNG. The summary lists, per follower, every tested speed at
+which the platoon stayed intact and the highest of them; intact speeds need not be
+contiguous (see docs/paper.md, "Speed study", for a failure at the lowest speed only).
 
     python tools/speed_study.py                    # full study (a few minutes on 2 cores)
     python tools/speed_study.py --speeds 0.1 0.3 --lap-fraction 0.25 --out /tmp/study
+    python tools/speed_study.py --replot           # redo table/PNG from OUT/speed_study.json
 """
 
 from __future__ import annotations
@@ -96,6 +100,11 @@ def run_case(case: Case, base: dict[str, Any]) -> dict[str, Any]:
     min_gap = min((f["min_gap_m"] for f in followers.values() if f["min_gap_m"] is not None),
                   default=None)  # fmt: skip
     intact = bool(followers) and lost == 0 and summary["collisions"] == 0
+    lost_by = sorted(vid for vid, f in followers.items() if f["lost_scans"])
+    hits = [
+        f"{e['vehicle_a']}/{e['vehicle_b']}@{e['time_s']:g}s"
+        for e in summary.get("collision_events", [])
+    ]
     return {
         "follower": case.follower,
         "leader_speed_mps": case.speed_mps,
@@ -105,6 +114,8 @@ def run_case(case: Case, base: dict[str, Any]) -> dict[str, Any]:
         "lost_scans": lost,
         "collisions": summary["collisions"],
         "min_gap_m": min_gap,
+        "lost_followers": " ".join(lost_by),
+        "collision_events": " ".join(hits),
     }
 
 
@@ -129,15 +140,43 @@ def study(
     return rows
 
 
+def intact_speeds(rows: list[dict[str, Any]], follower: str) -> list[float]:
+    """Every tested leader speed at which the platoon with this follower stayed intact."""
+    return sorted(
+        float(r["leader_speed_mps"]) for r in rows if r["follower"] == follower and r["intact"]
+    )
+
+
 def highest_intact(rows: list[dict[str, Any]], follower: str) -> float | None:
-    """Highest speed below which every tested speed kept the platoon intact."""
+    """Highest tested speed at which the platoon stayed intact (None: at none)."""
+    speeds = intact_speeds(rows, follower)
+    return speeds[-1] if speeds else None
+
+
+def highest_intact_from_lowest(rows: list[dict[str, Any]], follower: str) -> float | None:
+    """Highest speed such that every tested speed up to it kept the platoon intact
+    (the study's former headline; None when the lowest tested speed already failed)."""
     best = None
     for row in sorted((r for r in rows if r["follower"] == follower),
                       key=lambda r: r["leader_speed_mps"]):  # fmt: skip
         if not row["intact"]:
             break
-        best = row["leader_speed_mps"]
+        best = float(row["leader_speed_mps"])
     return best
+
+
+def _speeds_text(speeds: Sequence[float]) -> str:
+    return "{" + ", ".join(f"{v:g}" for v in speeds) + "}" if speeds else "none"
+
+
+def _cell(row: Any) -> str:
+    state = "intact" if row["intact"] else "**lost**"
+    n = int(row["collisions"])
+    text = f"{state} (in view {row['min_in_view_share']:.0%}, {n} collision{'s' if n != 1 else ''}"
+    events = row.get("collision_events")
+    if n and isinstance(events, str) and events:
+        text += f": {events}"
+    return text + ")"
 
 
 def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
@@ -150,7 +189,7 @@ def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     table = pd.DataFrame(rows).sort_values(["follower", "leader_speed_mps"])
     table.to_csv(out / "speed_study.csv", index=False)
-    followers = list(dict.fromkeys(table["follower"]))
+    followers = list(dict.fromkeys(r["follower"] for r in rows))
     lines = [
         "| leader speed [m/s] | " + " | ".join(f"`{f}`" for f in followers) + " |",
         "|---|" + "---|" * len(followers),
@@ -159,39 +198,97 @@ def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
         cells = []
         for f in followers:
             r = group[group["follower"] == f]
-            if r.empty:
-                cells.append("")
-                continue
-            row = r.iloc[0]
-            state = "intact" if row["intact"] else "**lost**"
-            cells.append(
-                f"{state} (in view {row['min_in_view_share']:.0%}, "
-                f"{int(row['collisions'])} collisions)"
-            )
+            cells.append("" if r.empty else _cell(r.iloc[0]))
         lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
+    tested = sorted({float(r["leader_speed_mps"]) for r in rows})
+    speeds = {f: intact_speeds(rows, f) for f in followers}
     best = {f: highest_intact(rows, f) for f in followers}
-    lines += ["", "Highest leader speed with the platoon intact at every lower tested speed:"]
-    lines += [f"- `{f}`: {v if v is not None else 'none'} m/s" for f, v in best.items()]
+    contiguous = {f: highest_intact_from_lowest(rows, f) for f in followers}
+    lines += [
+        "",
+        "Intact: every follower kept >= 1 ray on its predecessor at every scan after first "
+        "seeing it, and 0 collisions (robots or walls). In view: the worst follower's share "
+        "of such scans.",
+        "",
+        f"Tested leader speeds [m/s]: {_speeds_text(tested)}",
+        "",
+        "| follower | intact at [m/s] | highest intact [m/s] | intact at every speed up to [m/s] |",
+        "|---|---|---|---|",
+    ]
+    for f in followers:
+        b, c = best[f], contiguous[f]
+        lines.append(
+            f"| `{f}` | {_speeds_text(speeds[f])} | {'none' if b is None else f'{b:g}'} "
+            f"| {'none (lowest speed lost)' if c is None else f'{c:g}'} |"
+        )
     lines += ["", f"Command: `{command}`"]
     (out / "speed_study.md").write_text("\n".join(lines) + "\n")
-    (out / "speed_study.json").write_text(json.dumps({"best": best, "rows": rows}, indent=2))
+    summary = {
+        "command": command,
+        "intact_speeds": speeds,
+        "highest_intact": best,
+        "highest_intact_from_lowest": contiguous,
+        "rows": rows,
+    }
+    (out / "speed_study.json").write_text(json.dumps(summary, indent=2) + "\n")
+    _plot(table, followers, out / "speed_study.png", plt)
 
-    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
+
+def _plot(table: Any, followers: list[str], path: Path, plt: Any) -> None:
+    fig, (ax, strip) = plt.subplots(
+        2, 1, figsize=(7.5, 5.2), sharex=True, height_ratios=(3, 1.2), layout="constrained"
+    )
     for i, f in enumerate(followers):
         part = table[table["follower"] == f]
-        ax.plot(part["leader_speed_mps"], part["min_in_view_share"] * 100, "o-", label=f,
-                color=f"C{i}")  # fmt: skip
-        broken = part[~part["intact"]]
-        ax.plot(broken["leader_speed_mps"], broken["min_in_view_share"] * 100, "x",
-                color=f"C{i}", markersize=10)  # fmt: skip
-    ax.set_xlabel("leader speed [m/s]")
-    ax.set_ylabel("worst follower: scans with predecessor in view [%]")
-    ax.set_title("Paper world, 5 robots: does every follower keep its predecessor? (x = lost)")
-    ax.set_ylim(-5, 105)
+        x, y = part["leader_speed_mps"], part["min_in_view_share"] * 100
+        color = f"C{i}"
+        ax.plot(x, y, "-", color=color, alpha=0.6, label=f)
+        ok, bad = part[part["intact"]], part[~part["intact"]]
+        ax.plot(ok["leader_speed_mps"], ok["min_in_view_share"] * 100, "o", color=color,
+                markersize=7)  # fmt: skip
+        ax.plot(bad["leader_speed_mps"], bad["min_in_view_share"] * 100, "X", color=color,
+                markeredgecolor="black", markersize=11)  # fmt: skip
+        strip.plot(ok["leader_speed_mps"], [i] * len(ok), "o", color=color, markersize=9)
+        strip.plot(bad["leader_speed_mps"], [i] * len(bad), "X", color=color,
+                   markeredgecolor="black", markersize=11)  # fmt: skip
+        for _, row in part[part["collisions"] > 0].iterrows():
+            n = int(row["collisions"])
+            label = f"{n} collision{'s' if n != 1 else ''}"
+            ax.annotate(label, (row["leader_speed_mps"], row["min_in_view_share"] * 100),
+                        xytext=(14, -14), textcoords="offset points", color=color,
+                        fontsize=8, arrowprops={"arrowstyle": "-", "color": color})  # fmt: skip
+            strip.annotate("collision", (row["leader_speed_mps"], i), xytext=(8, 5),
+                           textcoords="offset points", fontsize=7, color=color)  # fmt: skip
+    ax.set_ylabel("worst follower: scans with\npredecessor in view [%]")
+    ax.set_title("Paper world, 5 robots: does every follower keep its predecessor?")
+    ax.set_ylim(-5, 108)
     ax.grid(alpha=0.3)
-    ax.legend()
-    fig.savefig(out / "speed_study.png", dpi=150)
+    handles, _labels = ax.get_legend_handles_labels()
+    marks = [
+        plt.Line2D([], [], marker="o", ls="", color="grey", label="intact"),
+        plt.Line2D([], [], marker="X", ls="", color="grey", markeredgecolor="black",
+                   markersize=10, label="lost (predecessor out of view, or a collision)"),
+    ]  # fmt: skip
+    ax.legend(handles=handles + marks, fontsize=8, loc="center right", bbox_to_anchor=(1.0, 0.45))
+    strip.set_yticks(range(len(followers)), followers, fontsize=8)
+    strip.set_ylim(-0.7, len(followers) - 0.3)
+    strip.set_xticks(sorted(table["leader_speed_mps"].unique()))
+    strip.tick_params(axis="x", labelsize=8)
+    strip.set_xlabel("leader speed [m/s]  (o intact, X lost)")
+    strip.grid(axis="x", alpha=0.3)
+    fig.savefig(path, dpi=150)
     plt.close(fig)
+
+
+def load_rows(out: Path) -> tuple[list[dict[str, Any]], str | None]:
+    """Rows (and the command, if recorded) of a previous study in ``out``."""
+    data = json.loads((out / "speed_study.json").read_text())
+    command = data.get("command")
+    if command is None and (out / "speed_study.md").exists():
+        for line in (out / "speed_study.md").read_text().splitlines():
+            if line.startswith("Command: `") and line.endswith("`"):
+                command = line[len("Command: `") : -1]
+    return data["rows"], command
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -206,7 +303,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--jobs", type=int, default=2, help="parallel SUMO processes")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "speed_study")
+    parser.add_argument(
+        "--replot",
+        action="store_true",
+        help="no runs: rewrite the table, CSV, JSON and PNG from OUT/speed_study.json",
+    )
     args = parser.parse_args(argv)  # fmt: skip
+    if args.replot:
+        rows, command = load_rows(args.out)
+        write_outputs(rows, args.out, command or "(command not recorded)")
+        print((args.out / "speed_study.md").read_text())
+        return 0
     rows = study(args.speeds, args.followers, args.lap_fraction, args.jobs)
     shown = " ".join(sys.argv[1:]) if argv is None else " ".join(argv)
     write_outputs(rows, args.out, f"python tools/speed_study.py {shown}".strip())

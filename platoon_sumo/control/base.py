@@ -13,7 +13,7 @@ from platoon_sumo.path import RoutePath
 from platoon_sumo.registry import Registry
 from platoon_sumo.sensors.laser import LaserScan
 from platoon_sumo.vehicles import MotionLimits
-from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead
+from platoon_sumo.world import LaneChangeAhead, LinkAhead, SignalAhead, VehicleAhead
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,8 @@ class Observation:
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
     """The junction link at the end of the current lane with SUMO's right-of-way view."""
+    lane_change: LaneChangeAhead | None = None
+    """The next lane change of the route within reach, and whether its target lane is clear."""
     vehicle_ahead: VehicleAhead | None = None
     """Nearest vehicle ahead on the route lanes (the traffic picture a car's ADAS has);
     laser-only followers ignore it and use `scan`."""

@@ -1,7 +1,8 @@
 """Laser-only follower: tracks the predecessor's rear in the scan and drives on its path.
 
 No communication and no SUMO ground truth: the controller reads its own pose and speed
-(odometry), its laser scan, ``dt`` and its limits; ``observation.path`` only serves the
+(odometry), its laser scan, ``dt`` and its limits. ``observation.path`` (its own route,
+which any car knows) is the map of where it may drive: the route corridor below and the
 ``route_following`` fallback while the predecessor is lost. ``observation.vehicle_ahead``
 is never read.
 
@@ -12,8 +13,17 @@ Each step:
    without a track, start one on the rear closest to straight ahead in the start gate;
    a constant-velocity Kalman filter in the world (odometry) frame gives the
    predecessor's rear position and velocity.
+   **Route corridor** (``corridor_half_width_m``, on by default): a rear counts as on
+   the route when, projected onto ``observation.path`` near the follower's own arc
+   length, it lies ahead and within the corridor half-width of the route's centre-line
+   (default: half the lane width there plus ``corridor_margin_rel`` lane widths). A
+   track starts only on such a rear (not on a car in the neighbouring lane), and a
+   track whose rear stays outside the corridor for more than ``corridor_exit_s`` is
+   dropped (the predecessor turned off the route: lost, see 5.) instead of being
+   followed off the route.
 2. **Trail**: the filtered rear positions are appended to a trail every
-   ``trail_spacing_m``; points behind the follower are dropped.
+   ``trail_spacing_m`` (only inside the route corridor); points behind the follower are
+   dropped.
 3. **Longitudinal**: gap = distance from the own front bumper to the predecessor's rear,
    ``a = k_gap (gap - desired_gap_m(v)) + k_rate * range_rate``, integrated to a speed
    command, capped by a Krauss-style safe speed (can still stop ``min_gap_m`` short if
@@ -21,7 +31,9 @@ Each step:
    bumper (or closer than the scanner's ``range_min``) in front of the vehicle.
 4. **Lateral**: pure pursuit of the reference point on the trail (the platoon corners
    on the leader's line); ``steer_at="predecessor"`` aims at the predecessor's current
-   rear instead (what a naive follower does; it cuts corners) for comparison.
+   rear instead (what a naive follower does; it cuts corners) for comparison. While the
+   rear is outside the route corridor the steering never aims at it: the trail (inside
+   the corridor) is followed and, once it is used up, the own route.
 5. **Lost** (no confirmed track): ``on_lost="stop"`` brakes at ``comfort_decel_mps2``
    while steering along what is left of the trail; ``on_lost="route_following"`` hands
    over to a ``RouteFollowing`` on ``observation.path`` (without ``vehicle_ahead``, its
@@ -60,12 +72,14 @@ from platoon_sumo.control.perception import (
     detect_rears,
 )
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
-from platoon_sumo.path import FloatArray
+from platoon_sumo.path import FloatArray, RoutePath
 from platoon_sumo.sensors.laser import LaserScan
 
 _POLICIES = ("constant_distance", "constant_time_gap")
 _ON_LOST = ("stop", "route_following")
 _STEER_AT = ("trail", "predecessor")
+_CORRIDOR_AHEAD_LENGTHS = 3.0
+"""The route is searched up to this many own vehicle lengths beyond a rear's distance."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +117,16 @@ class LaserFollowerParams:
     """What to do without a predecessor: stop comfortably, or follow the own route."""
     predecessor_width_m: float | None = None
     """Expected rear width of the predecessor [m]; None: the follower's own width."""
+    corridor_half_width_m: float | Literal["lane"] | None = "lane"
+    """Half-width of the own route's corridor in which a predecessor is tracked and its
+    trail followed [m]; "lane": half the lane width at the rear's point of the route plus
+    ``corridor_margin_rel`` lane widths (scales with the network: cars and robots);
+    None: no corridor (any vehicle in the start gate, followed anywhere)."""
+    corridor_margin_rel: float = 0.2
+    """Margin of the "lane" corridor beyond half the lane width, in lane widths
+    (3.2 m lanes: 2.24 m half-width; the paper world's 0.5 m lanes: 0.35 m)."""
+    corridor_exit_s: float = 0.5
+    """A track whose rear stays outside the corridor longer than this is dropped [s]."""
     perception: PerceptionParams = field(default_factory=PerceptionParams)
     tracker: TrackerParams = field(default_factory=TrackerParams)
     fallback: RouteFollowingParams = field(default_factory=RouteFollowingParams)
@@ -126,6 +150,8 @@ class LaserFollowerParams:
             "min_gap_m",
             "reaction_time_s",
             "lookahead_time_s",
+            "corridor_margin_rel",
+            "corridor_exit_s",
         ):
             require(getattr(self, key) >= 0, key, "must be >= 0")
         require(self.max_trail_points >= 2, "max_trail_points", "must be >= 2")
@@ -133,6 +159,12 @@ class LaserFollowerParams:
             self.predecessor_width_m is None or self.predecessor_width_m > 0,
             "predecessor_width_m",
             "must be > 0",
+        )
+        hw = self.corridor_half_width_m
+        require(
+            hw is None or hw == "lane" or (not isinstance(hw, str) and hw > 0),
+            "corridor_half_width_m",
+            'must be > 0, "lane" or null',
         )
 
 
@@ -188,6 +220,9 @@ class LaserFollower:
         self._in_view = False
         self._scan_points: FloatArray = np.zeros((0, 2))
         self._track: TrackedPredecessor | None = None
+        self._route: RoutePath | None = None
+        self._route_s: float | None = None
+        self._outside_since: float | None = None
         self.mode = "lost"
 
     def desired_gap_m(self, speed_mps: float) -> float:
@@ -211,6 +246,8 @@ class LaserFollower:
 
     def step(self, observation: Observation) -> Command:
         obs, p = observation, self.params
+        if p.corridor_half_width_m is not None:
+            self._locate_on_route(obs)
         if obs.scan is not None and obs.scan is not self._last_scan:
             self._perceive(obs, obs.scan)
         shadow = None
@@ -253,15 +290,64 @@ class LaserFollower:
         hint = tracker.heading_hint(scan.heading_rad) - scan.heading_rad
         candidates = detect_rears(scan, p.perception, width, hint, roi)
         was_active = tracker.active
+        if not was_active:  # start only on a rear on the own route
+            candidates = [
+                cand
+                for cand in candidates
+                if self._in_corridor(obs, *pose.to_world(cand.x_m, cand.y_m))
+            ]
         own_v = (obs.speed_mps * c, obs.speed_mps * s)
         hit = tracker.step(obs.time_s, candidates, pose, own_v, 0.5 * width)
+        inside = tracker.active and self._in_corridor(obs, *tracker.position)
+        if not tracker.active or inside:
+            self._outside_since = None
+        elif self._outside_since is None:
+            self._outside_since = obs.time_s
+        elif obs.time_s - self._outside_since > p.corridor_exit_s:
+            tracker.reset()  # it turned off the route: lost, do not follow it
+            self._outside_since = None
+            hit = None
         self._in_view = hit is not None
         if hit is not None and not was_active:
             self._trail = []  # a new track: the old trail may belong to another vehicle
-        if hit is not None:
+        if hit is not None and inside:
             self._append_trail(*tracker.position)
         self._blocked = self._check_blocked(scan, width)
         self._scan_points = scan.points_world()
+
+    # ------------------------------------------------------------------ route corridor
+
+    def _locate_on_route(self, obs: Observation) -> None:
+        """Track the follower's own arc length on its route (searched near the last one)."""
+        if obs.path is not self._route:
+            self._route, self._route_s = obs.path, None
+        window = max(4.0 * obs.length_m, 2.0 * self._lookahead(obs))
+        self._route_s = obs.path.project(obs.x_m, obs.y_m, self._route_s, window).s_m
+
+    def _in_corridor(self, obs: Observation, x_m: float, y_m: float) -> bool:
+        """Does the world point lie ahead on the own route, within the corridor?"""
+        half_width = self.params.corridor_half_width_m
+        if half_width is None or self._route_s is None:
+            return True
+        path, s0 = obs.path, self._route_s
+        # search from the own arc length to a few vehicle lengths beyond the point's range
+        reach = 0.5 * (
+            math.hypot(x_m - obs.x_m, y_m - obs.y_m) + _CORRIDOR_AHEAD_LENGTHS * obs.length_m
+        )
+        at = path.project(x_m, y_m, s0 + reach, reach)
+        if at.s_m <= s0:
+            return False
+        if half_width == "lane":
+            i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
+            lane = float(path.lane_width_m[i])
+            half_width = (0.5 + self.params.corridor_margin_rel) * lane
+        return abs(at.lateral_offset_m) <= half_width
+
+    def _route_target(self, obs: Observation) -> tuple[float, float] | None:
+        """The own route's point one look-ahead beyond the follower (None without a corridor)."""
+        if self._route_s is None:
+            return None
+        return obs.path.point_at(self._route_s + self._lookahead(obs))
 
     def _width(self, obs: Observation) -> float:
         return self.params.predecessor_width_m or obs.width_m
@@ -332,7 +418,13 @@ class LaserFollower:
         )
         speed = min(max(obs.speed_mps + accel * obs.dt_s, 0.0), safe, lim.max_speed_mps)
 
-        target = self._trail_target(obs, (rx, ry)) if p.steer_at == "trail" else (rx, ry)
+        end: tuple[float, float] | None = (rx, ry)
+        if not self._in_corridor(obs, rx, ry):
+            end = None  # turning off the route: never steer after it
+        if p.steer_at == "trail":
+            target = self._trail_target(obs, end, self._route_target(obs) if end is None else None)
+        else:
+            target = end or self._route_target(obs)
         yaw_rate = self._pursuit(obs, speed, target)
 
         sensor = self._current_sensor_pose(obs)
@@ -369,23 +461,32 @@ class LaserFollower:
         return max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
 
     def _trail_target(
-        self, obs: Observation, end: tuple[float, float] | None
+        self,
+        obs: Observation,
+        end: tuple[float, float] | None,
+        beyond_trail: tuple[float, float] | None = None,
     ) -> tuple[float, float] | None:
-        """Point of the trail (extended to ``end``) one look-ahead from the reference point."""
+        """Point of the trail (extended to ``end``) one look-ahead from the reference point;
+        ``beyond_trail`` (if given) when no trail point is that far."""
         pts = list(self._trail)
         if end is not None:
             pts.append(end)
         if not pts:
-            return None
+            return beyond_trail
         arr = np.asarray(pts, dtype=np.float64)
         d = np.hypot(arr[:, 0] - obs.x_m, arr[:, 1] - obs.y_m)
         look = self._lookahead(obs)
-        beyond = np.flatnonzero(d >= look)
+        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
+        ahead = (arr[:, 0] - obs.x_m) * c + (arr[:, 1] - obs.y_m) * s > 0.0
+        # never aim behind: a point left behind (the trail stopped growing) is skipped
+        beyond = np.flatnonzero((d >= look) & ahead)
         if beyond.size == 0:
+            if beyond_trail is not None:
+                return beyond_trail
             return float(arr[-1, 0]), float(arr[-1, 1])
         j = int(beyond[0])
-        if j == 0:
-            return float(arr[0, 0]), float(arr[0, 1])
+        if j == 0 or d[j - 1] >= look:
+            return float(arr[j, 0]), float(arr[j, 1])
         # the point of segment (j-1, j) at distance `look` from the reference point
         a, b = arr[j - 1], arr[j]
         e = b - a

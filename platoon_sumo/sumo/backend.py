@@ -217,6 +217,14 @@ class SumoBackend:
                 return False
         return True
 
+    def lane_occupants(self, lane_id: str) -> list[tuple[str, float, float, float]]:
+        """(id, front position along the lane, speed, length) of every vehicle on the lane."""
+        veh = libsumo.vehicle
+        return [
+            (vid, veh.getLanePosition(vid), veh.getSpeed(vid), veh.getLength(vid))
+            for vid in libsumo.lane.getLastStepVehicleIDs(lane_id)
+        ]
+
     def departed_ids(self) -> tuple[str, ...]:
         return tuple(libsumo.simulation.getDepartedIDList())
 

@@ -21,7 +21,7 @@ from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
 from platoon_sumo.errors import did_you_mean
-from platoon_sumo.path import RoutePath
+from platoon_sumo.path import LaneChange, RoutePath
 
 
 class RouteError(ValueError):
@@ -217,6 +217,8 @@ class Network:
         speeds: list[float] = []
         widths: list[float] = []
         entry_lane = first_lane if first_lane is not None else None
+        changes: list[LaneChange] = []
+        offset_m = 0.0
         for i, edge_id in enumerate(edges):
             edge = self._normal_edges[edge_id]
             exit_lane = links[i].from_lane if i < len(links) else None
@@ -224,7 +226,23 @@ class Network:
             start = start if start is not None else 0
             end = exit_lane if exit_lane is not None else start
             lane_a, lane_b = edge.getLane(start), edge.getLane(end)
-            pieces.append(_blend(np.asarray(lane_a.getShape()), np.asarray(lane_b.getShape())))
+            piece = _blend(np.asarray(lane_a.getShape()), np.asarray(lane_b.getShape()))
+            length = _length(piece)
+            if start != end:
+                step = 1 if end > start else -1
+                targets = tuple(
+                    edge.getLane(k).getID() for k in range(start + step, end + step, step)
+                )
+                changes.append(
+                    LaneChange(
+                        offset_m + BLEND[0] * length,
+                        offset_m + BLEND[1] * length,
+                        targets,
+                        BLEND[0] * lane_b.getLength(),
+                    )
+                )
+            offset_m += length
+            pieces.append(piece)
             lane_ids.append(lane_a.getID())
             speeds.append(min(lane_a.getSpeed(), lane_b.getSpeed()))
             widths.append(min(lane_a.getWidth(), lane_b.getWidth()))
@@ -232,11 +250,12 @@ class Network:
                 for via_id in links[i].via_lane_ids:
                     via = self._net.getLane(via_id)
                     pieces.append(np.asarray(via.getShape()))
+                    offset_m += _length(pieces[-1])
                     lane_ids.append(via_id)
                     speeds.append(via.getSpeed())
                     widths.append(via.getWidth())
                 entry_lane = links[i].to_lane
-        return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m)
+        return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m, changes)
 
     def _choose_links(
         self, edges: Sequence[str], first_lane: int | None, vclass: str
@@ -272,6 +291,14 @@ class Network:
         return [opts[k] for opts, k in zip(options, chosen, strict=True)]
 
 
+#: Share of an edge's length where a lane change begins and ends.
+BLEND = (0.25, 0.75)
+
+
+def _length(polyline: np.ndarray) -> float:
+    return float(np.hypot(*np.diff(polyline, axis=0).T).sum())
+
+
 def _blend(shape_a: np.ndarray, shape_b: np.ndarray) -> np.ndarray:
     """Polyline leaving along shape_a and arriving along shape_b (same edge, other lane)."""
     if shape_a.shape == shape_b.shape and np.allclose(shape_a, shape_b):
@@ -280,8 +307,8 @@ def _blend(shape_a: np.ndarray, shape_b: np.ndarray) -> np.ndarray:
     t = np.linspace(0.0, 1.0, n)
     a = _resample(shape_a, t)
     b = _resample(shape_b, t)
-    # Smoothstep between 25 % and 75 % of the edge: the change happens mid-block.
-    u = np.clip((t - 0.25) / 0.5, 0.0, 1.0)
+    # Smoothstep over the middle of the edge: the change happens mid-block.
+    u = np.clip((t - BLEND[0]) / (BLEND[1] - BLEND[0]), 0.0, 1.0)
     w = u * u * (3 - 2 * u)
     return a * (1 - w)[:, None] + b * w[:, None]
 

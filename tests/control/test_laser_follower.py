@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pytest
@@ -54,10 +54,22 @@ ROBOT_PARAMS = LaserFollowerParams(
 )
 
 
-def straight_path(length_m: float = 2000.0, y_m: float = 0.0, spacing_m: float = 0.5) -> RoutePath:
+def straight_path(
+    length_m: float = 2000.0, y_m: float = 0.0, spacing_m: float = 0.5, lane_width_m: float = 3.2
+) -> RoutePath:
     n = int(length_m / spacing_m) + 1
     pts = np.column_stack([np.linspace(-50.0, length_m - 50.0, n), np.full(n, y_m)])
-    return RoutePath.from_pieces([pts], ["e_0"], [13.89], [3.2], spacing_m)
+    return RoutePath.from_pieces([pts], ["e_0"], [13.89], [lane_width_m], spacing_m)
+
+
+def arc_path(radius_m: float, spacing_m: float = 0.5, lane_width_m: float = 3.2) -> RoutePath:
+    """Straight along +x up to x = 0, then a left curve of `radius_m` (centre (0, R))."""
+    back = np.column_stack([np.linspace(-50.0, 0.0, 101), np.zeros(101)])
+    phi = np.linspace(0.0, math.pi, 400)
+    arc = np.column_stack([radius_m * np.sin(phi), radius_m * (1.0 - np.cos(phi))])
+    return RoutePath.from_pieces(
+        [back, arc], ["e_0", "e_1"], [13.89] * 2, [lane_width_m] * 2, spacing_m
+    )
 
 
 @dataclass
@@ -333,7 +345,7 @@ def test_too_close_predecessor_brakes_hard_and_very_close_stops():
         me, 0.0, 0.05, ROBOT_LASER, ROBOT_LIMITS, straight_path(), [robot(0.2 + 0.15).rect],
         rng=np.random.default_rng(0),
     )  # fmt: skip
-    assert np.isneginf(obs.scan.ranges).any()
+    assert obs.scan is not None and np.isneginf(obs.scan.ranges).any()
     assert ctrl.step(obs).speed_mps == 0.0
 
 
@@ -398,6 +410,27 @@ def test_car_hard_brake_to_standstill_no_collision():
     assert all(m == "following" for m in run.mode[5:])
 
 
+def lead_route(
+    lead: Vehicle,
+    script: Script,
+    steps: int,
+    dt: float,
+    limits: MotionLimits,
+    model,
+    spacing_m: float,
+    lane_width_m: float,
+) -> RoutePath:
+    """The route the lead drives (its script dry-run on a copy): the platoon's shared route,
+    straight behind the lead's start and on beyond its last position."""
+    ghost = Vehicle(**lead.__dict__)
+    xy = [(ghost.x - 100.0 * math.cos(ghost.yaw), ghost.y - 100.0 * math.sin(ghost.yaw))]
+    for k in range(steps):
+        xy.append((ghost.x, ghost.y))
+        ghost.move(model, *script(k * dt, ghost), limits, dt)
+    xy.append((ghost.x + 100.0 * math.cos(ghost.yaw), ghost.y + 100.0 * math.sin(ghost.yaw)))
+    return RoutePath.from_pieces([np.asarray(xy)], ["e_0"], [13.89], [lane_width_m], spacing_m)
+
+
 def turn_script(v: float, radius: float, start_x: float) -> Script:
     """Straight along +x, a 90 deg left turn of `radius` from x = start_x, then straight."""
     state = {"turned": 0.0}
@@ -419,7 +452,8 @@ def test_car_turn_corners_on_the_leaders_line(steer_at, request):
     gap0 = ctrl.desired_gap_m(v)
     me = car(0.0, v=v)
     lead = car(CAR_FRONT + gap0 + (CAR_LEN - CAR_FRONT), v=v)
-    run = car_loop(ctrl, lead, me, turn_script(v, 15.0, 60.0), 250)
+    route = lead_route(lead, turn_script(v, 15.0, 60.0), 250, 0.1, CAR_LIMITS, Bicycle(), 0.5, 3.2)
+    run = car_loop(ctrl, lead, me, turn_script(v, 15.0, 60.0), 250, path=route)
     assert not run.collided
     lead_xy, own_xy = np.asarray(run.lead_xy), np.asarray(run.own_xy)
     assert lead_xy[-1, 1] > 40.0  # the lead went round the corner and on north
@@ -440,7 +474,9 @@ def test_trail_follower_cuts_the_corner_less_than_direct_pursuit():
         ctrl = LaserFollower(LaserFollowerParams(steer_at=steer_at))
         me = car(0.0, v=8.0)
         lead = car(CAR_FRONT + ctrl.desired_gap_m(8.0) + 0.9, v=8.0)
-        run = car_loop(ctrl, lead, me, turn_script(8.0, 15.0, 60.0), 250)
+        script = turn_script(8.0, 15.0, 60.0)
+        route = lead_route(lead, script, 250, 0.1, CAR_LIMITS, Bicycle(), 0.5, 3.2)
+        run = car_loop(ctrl, lead, me, turn_script(8.0, 15.0, 60.0), 250, path=route)
         lead_xy = np.vstack([[[-100.0, 0.0]], np.asarray(run.lead_xy)])
         devs[steer_at] = deviation_from_path(np.asarray(run.own_xy), lead_xy).max()
     assert devs["trail"] < 0.5 * devs["predecessor"]
@@ -451,25 +487,22 @@ def test_robot_scale_speed_steps_and_turn_keep_in_view():
     ctrl = LaserFollower(ROBOT_PARAMS)
     me = robot(0.0, v=0.1)
     lead = robot(ROBOT_FRONT + ctrl.desired_gap_m(0.1) + 0.15, v=0.1)
-    turn = turn_script(0.3, 1.0, 4.0)
 
-    def script(t, veh):
-        if veh.x < 4.0 and veh.y < 0.01:
-            return (0.1 if t < 5.0 else 0.5), 0.0
-        _, w = turn(t, veh)
-        return 0.3, w * 0.1 / 0.05  # turn_script integrates at dt 0.1: scale to dt 0.05
+    def make_script() -> Script:
+        turn = turn_script(0.3, 1.0, 4.0)
 
+        def script(t, veh):
+            if veh.x < 4.0 and veh.y < 0.01:
+                return (0.1 if t < 5.0 else 0.5), 0.0
+            _, w = turn(t, veh)
+            return 0.3, w * 0.1 / 0.05  # turn_script integrates at dt 0.1: scale to dt 0.05
+
+        return script
+
+    # the paper world's lanes are 0.5 m wide: the default corridor scales with them
+    route = lead_route(lead, make_script(), 900, 0.05, ROBOT_LIMITS, Unicycle(), 0.05, 0.5)
     run = closed_loop(
-        ctrl,
-        lead,
-        me,
-        script,
-        900,
-        0.05,
-        ROBOT_LASER,
-        ROBOT_LIMITS,
-        Unicycle(),
-        straight_path(spacing_m=0.05),
+        ctrl, lead, me, make_script(), 900, 0.05, ROBOT_LASER, ROBOT_LIMITS, Unicycle(), route
     )
     assert not run.collided
     assert all(run.in_view[5:]), "predecessor stays in view"
@@ -530,3 +563,165 @@ def test_predecessor_disappears_then_reappears():
     assert not run.collided
     err = run.arrays("gap") - run.arrays("desired")
     assert abs(err[-1]) < abs(err[k_back])  # closing the spacing error again
+
+
+# ----------------------------------------------------------------------------- route corridor
+
+
+def rear_track(ref_xy: np.ndarray, back_m: float) -> np.ndarray:
+    """Rear-centre positions of a vehicle from its reference-point track (heading from it)."""
+    step = np.diff(ref_xy, axis=0)
+    yaw = np.concatenate([[0.0], np.arctan2(step[:, 1], step[:, 0])])
+    return ref_xy - back_m * np.column_stack([np.cos(yaw), np.sin(yaw)])
+
+
+def car_with_rear(rear_x: float, rear_y: float, yaw: float = 0.0, v: float = 0.0) -> Vehicle:
+    back = CAR_LEN - CAR_FRONT
+    return car(rear_x + back * math.cos(yaw), rear_y + back * math.sin(yaw), yaw, v)
+
+
+def test_corridor_params_are_checked():
+    p = LaserFollowerParams()
+    assert p.corridor_half_width_m == "lane" and p.corridor_exit_s > 0.0
+    loaded = load_dataclass(LaserFollowerParams, {"corridor_half_width_m": 2.0}, "s.yaml", "params")
+    assert loaded.corridor_half_width_m == 2.0
+    off = load_dataclass(LaserFollowerParams, {"corridor_half_width_m": None}, "s.yaml", "params")
+    assert off.corridor_half_width_m is None
+    for bad in (0.0, "lanes"):
+        with pytest.raises(ScenarioError, match="corridor_half_width_m"):
+            load_dataclass(LaserFollowerParams, {"corridor_half_width_m": bad}, "s.yaml", "params")
+    with pytest.raises(ScenarioError, match="corridor_exit_s"):
+        load_dataclass(LaserFollowerParams, {"corridor_exit_s": -0.1}, "s.yaml", "params")
+
+
+def corridor_open_loop(rects, me: Vehicle, path: RoutePath, params: LaserFollowerParams, steps=10):
+    ctrl = LaserFollower(params)
+    rng = np.random.default_rng(4)
+    cmd = None
+    for k in range(steps):
+        obs = observe(me, k * 0.1, 0.1, CAR_LASER, CAR_LIMITS, path, rects, rng=rng)
+        cmd = ctrl.step(obs)
+    assert cmd is not None
+    return ctrl, cmd
+
+
+@pytest.mark.parametrize("corridor", ["lane", None])
+def test_car_in_the_neighbouring_lane_is_not_taken_for_a_predecessor(corridor):
+    """(a) predecessor lost, route following: a car one lane to the left, slightly ahead,
+    inside a (widened) start gate, is not tracked; without the corridor it would be."""
+    params = LaserFollowerParams(
+        on_lost="route_following",
+        corridor_half_width_m=corridor,
+        tracker=TrackerParams(start_lateral_m=4.0),
+    )
+    neighbour = car_with_rear(CAR_FRONT + 4.0, 3.2)
+    ctrl, _ = corridor_open_loop([neighbour.rect], car(0.0, v=8.0), straight_path(), params)
+    if corridor is None:
+        assert ctrl.mode == "following"  # the bug: it would follow the neighbour
+        return
+    assert ctrl.mode == "route_following" and ctrl.track is None
+    assert not ctrl.tracker.active
+    # a car in the own lane further ahead is still picked up, the neighbour is not
+    own = car_with_rear(CAR_FRONT + 20.0, 0.2)
+    ctrl, _ = corridor_open_loop(
+        [neighbour.rect, own.rect], car(0.0, v=8.0), straight_path(), params
+    )
+    assert ctrl.mode == "following" and ctrl.track is not None
+    assert math.hypot(ctrl.track.x_m - own.rear[0], ctrl.track.y_m - own.rear[1]) < 0.2
+
+
+@pytest.mark.parametrize("corridor", ["lane", None])
+def test_car_in_the_outer_lane_of_a_curve_is_not_taken_for_a_predecessor(corridor):
+    """(a) at the start of a left curve (radius 60 m) a car in the outer lane 20 m on
+    appears straight ahead (inside the default start gate); the own lane is empty."""
+    radius, lane = 60.0, 3.2
+    phi = 20.0 / radius
+    outer = radius + lane
+    rear = (outer * math.sin(phi), radius - outer * math.cos(phi))
+    neighbour = car_with_rear(*rear, yaw=phi)
+    assert abs(rear[1]) < 0.5  # straight ahead of the follower
+    params = LaserFollowerParams(on_lost="route_following", corridor_half_width_m=corridor)
+    ctrl, cmd = corridor_open_loop(
+        [neighbour.rect], car(-CAR_FRONT, v=8.0), arc_path(radius), params
+    )
+    if corridor is None:
+        assert ctrl.mode == "following"
+        return
+    assert ctrl.mode == "route_following" and ctrl.track is None
+    assert cmd.yaw_rate_radps > 0.0  # on along the own (left-curving) route
+
+
+@pytest.mark.parametrize("exit_s", [0.5, 1000.0])
+def test_predecessor_turning_off_the_route_is_dropped_and_not_followed(exit_s):
+    """(b) the route goes straight on; the tracked predecessor turns left (radius 15 m).
+
+    Default ``corridor_exit_s``: the track is dropped within that time after the rear
+    left the corridor and the follower goes on along its route (fallback). With an
+    exit time that never expires the track is kept, but the steering still keeps the
+    follower on its route: trail points outside the corridor are not followed.
+    """
+    v = 8.0
+    params = LaserFollowerParams(
+        on_lost="route_following",
+        corridor_exit_s=exit_s,
+        fallback=RouteFollowingParams(cruise_speed_mps=v),
+    )
+    ctrl = LaserFollower(params)
+    me = car(0.0, v=v)
+    lead = car(CAR_FRONT + ctrl.desired_gap_m(v) + (CAR_LEN - CAR_FRONT), v=v)
+    steps = 160
+    path = straight_path()
+    run = car_loop(ctrl, lead, me, turn_script(v, 15.0, 60.0), steps, path=path)
+    assert not run.collided
+    modes = run.mode
+    assert all(m == "following" for m in modes[3:50])  # before the turn
+    lead_xy = np.asarray(run.lead_xy)
+    rear_y = rear_track(lead_xy, CAR_LEN - CAR_FRONT)[:, 1]
+    half_width = (0.5 + params.corridor_margin_rel) * 3.2
+    k_out = int(np.argmax(np.abs(rear_y) > half_width))
+    assert k_out > 50 and lead_xy[-1, 1] > 40.0  # the lead left the route, went north
+    own = np.asarray(run.own_xy)
+    assert np.abs(own[:, 1]).max() < 0.5 * 3.2  # never more than half a lane off the route
+    assert own[-1, 0] > 100.0  # and went on straight past the junction (x = 60..75)
+    if exit_s < 100.0:
+        k_lost = modes.index("route_following", 3)
+        # dropped within corridor_exit_s (+ a scan, + the filter lagging the true rear)
+        assert k_out - 2 <= k_lost <= k_out + round(exit_s / 0.1) + 3
+        assert all(m == "route_following" for m in modes[k_lost:])  # not picked up again
+        assert run.speed[-1] == pytest.approx(v, abs=0.2)
+        assert np.abs(own[k_lost:, 1]).max() < 0.1
+    else:
+        assert all(m == "following" for m in modes[3:100])  # until it is out of sight
+        # the trail stops at the corridor's edge
+        assert np.abs(ctrl.trail[:, 1]).max() <= half_width
+
+
+def test_robot_predecessor_turning_off_the_route_is_dropped():
+    """(b) at robot scale: 0.5 m lanes (paper world), a 90 deg left turn of radius 1 m."""
+    ctrl = LaserFollower(replace(ROBOT_PARAMS, on_lost="route_following"))
+    v = 0.3
+    me = robot(0.0, v=v)
+    lead = robot(ROBOT_FRONT + ctrl.desired_gap_m(v) + 0.15, v=v)
+    turn = turn_script(v, 1.0, 2.0)
+
+    def script(t, veh):
+        _, w = turn(t, veh)
+        return v, w * 0.1 / 0.05
+
+    run = closed_loop(
+        ctrl, lead, me, script, 400, 0.05, ROBOT_LASER, ROBOT_LIMITS, Unicycle(),
+        straight_path(spacing_m=0.05, lane_width_m=0.5),
+    )  # fmt: skip
+    assert not run.collided
+    modes = run.mode
+    assert all(m == "following" for m in modes[5:100])
+    k_lost = modes.index("route_following", 5)
+    assert all(m == "route_following" for m in modes[k_lost:])
+    lead_xy = np.asarray(run.lead_xy)
+    assert lead_xy[-1, 1] > 1.5
+    rear_y = rear_track(lead_xy, ROBOT_LEN - ROBOT_FRONT)[:, 1]
+    k_out = int(np.argmax(np.abs(rear_y) > (0.5 + 0.2) * 0.5))  # the corridor: 0.35 m
+    assert k_out > 100
+    assert k_out - 2 <= k_lost <= k_out + round(0.5 / 0.05) + 4
+    own = np.asarray(run.own_xy)
+    assert np.abs(own[:, 1]).max() < 0.25 and own[-1, 0] > 3.5

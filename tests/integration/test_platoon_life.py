@@ -159,3 +159,23 @@ def test_platoon_share_turns_part_of_a_flow_into_platoons(write_scenario, tmp_pa
     assert 25 <= len(humans) <= 32  # the remaining 75 %: 360 veh/h for 300 s = 30
     assert summary["platoon_vehicles"]["departed"] == 9
     assert summary["collisions"] == 0
+
+
+def test_lane_change_waits_for_a_gap_in_the_target_lane(write_scenario, tmp_path):
+    # The route turns left at B0: the car must move to A0B0's left lane, which a flow of
+    # left-turning SUMO cars keeps busy.
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 200.0, "seed": 8},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "traffic": {"flows": [{"from_edge": "left0A0", "to_edge": "B0B1", "vehs_per_hour": 2400,
+                               "begin_s": 40.0, "end_s": 100.0}]},
+        "platoons": [{"id": "ego", "depart_s": 50.0, "depart_lane": 0,
+                      "route": {"edges": ["left0A0", "A0B0", "B0B1", "B1B2"]}}],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    assert summary["collisions"] == 0
+    assert summary["platoon_vehicles"]["arrived"] == 1
+    assert (traj["supervisor"] == "merge").sum() > 5  # it had to wait for a gap
+    assert "A0B0_1" in set(traj["lane_id"])  # and then changed lanes
