@@ -164,6 +164,14 @@ def require(condition: bool, key: str, message: str, hint: str | None = None) ->
         raise FieldError(key, message, hint)
 
 
+def require_positive(config: object, *keys: str, allow_zero: bool = False) -> None:
+    """Each named field of `config` must be > 0 (>= 0 with `allow_zero`); NaN fails too."""
+    for key in keys:
+        value = getattr(config, key)
+        ok = value >= 0 if allow_zero else value > 0
+        require(bool(ok), key, "must be >= 0" if allow_zero else "must be > 0")
+
+
 def require_choice(value: str, choices: Sequence[str], key: str) -> None:
     """`value` must be one of `choices`; otherwise name them and suggest the closest."""
     if value not in choices:

@@ -20,7 +20,7 @@ from typing import Any
 
 import yaml
 
-from platoon_sumo.config_loader import load_dataclass, require, require_choice
+from platoon_sumo.config_loader import load_dataclass, require, require_choice, require_positive
 from platoon_sumo.control import CONTROLLERS, Controller
 from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
@@ -134,8 +134,9 @@ class VehicleTypeConfig:
         require_choice(self.car_follow_model, CAR_FOLLOW_MODELS, "car_follow_model")
         require_choice(self.lane_change_model, LANE_CHANGE_MODELS, "lane_change_model")
         require_choice(self.vclass, VEHICLE_CLASSES, "vclass")
-        for key in ("length_m", "width_m", "max_speed_mps", "accel_mps2", "decel_mps2", "tau_s"):
-            require(getattr(self, key) > 0, key, "must be > 0")
+        require_positive(
+            self, "length_m", "width_m", "max_speed_mps", "accel_mps2", "decel_mps2", "tau_s"
+        )
         require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
         require(self.probability > 0, "probability", "must be > 0")
         require(0 <= self.sigma <= 1, "sigma", "must be in [0, 1]")
@@ -280,9 +281,16 @@ class VehicleConfig:
     def __post_init__(self) -> None:
         require_choice(self.model, VEHICLE_MODELS.names(), "model")
         require_choice(self.vclass, VEHICLE_CLASSES, "vclass")
-        for key in ("length_m", "width_m", "wheelbase_m", "max_speed_mps", "max_accel_mps2",
-                    "max_decel_mps2", "max_yaw_rate_radps"):  # fmt: skip
-            require(getattr(self, key) > 0, key, "must be > 0")
+        require_positive(
+            self,
+            "length_m",
+            "width_m",
+            "wheelbase_m",
+            "max_speed_mps",
+            "max_accel_mps2",
+            "max_decel_mps2",
+            "max_yaw_rate_radps",
+        )
         require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
         require(0 < self.max_steer_rad < math.pi / 2, "max_steer_rad", "must be in (0, pi/2)")
         require(

@@ -62,7 +62,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from platoon_sumo.config_loader import require, require_choice
+from platoon_sumo.config_loader import require, require_choice, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.perception import (
     PerceptionParams,
@@ -136,14 +136,11 @@ class LaserFollowerParams:
         require_choice(self.policy, _POLICIES, "policy")
         require_choice(self.on_lost, _ON_LOST, "on_lost")
         require_choice(self.steer_at, _STEER_AT, "steer_at")
-        for key in (
-            "k_gap_1ps2",
-            "comfort_decel_mps2",
-            "lookahead_min_m",
-            "trail_spacing_m",
-        ):
-            require(getattr(self, key) > 0, key, "must be > 0")
-        for key in (
+        require_positive(
+            self, "k_gap_1ps2", "comfort_decel_mps2", "lookahead_min_m", "trail_spacing_m"
+        )
+        require_positive(
+            self,
             "standstill_gap_m",
             "time_gap_s",
             "k_rate_1ps",
@@ -152,8 +149,8 @@ class LaserFollowerParams:
             "lookahead_time_s",
             "corridor_margin_rel",
             "corridor_exit_s",
-        ):
-            require(getattr(self, key) >= 0, key, "must be >= 0")
+            allow_zero=True,
+        )
         require(self.max_trail_points >= 2, "max_trail_points", "must be >= 2")
         require(
             self.predecessor_width_m is None or self.predecessor_width_m > 0,

@@ -20,7 +20,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.config_loader import require
+from platoon_sumo.config_loader import require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.sensors.laser import LaserScan
 
@@ -90,8 +90,9 @@ class PaperLeaderParams:
     to obstacle or wall"); ``+1``: the literal ROS sign (negative = clockwise)."""
 
     def __post_init__(self) -> None:
-        for key in ("near_m", "front_far_m", "fleft_far_m", "fright_clear_m", "fright_wide_m"):
-            require(getattr(self, key) > 0, key, "must be > 0 [m]")
+        require_positive(
+            self, "near_m", "front_far_m", "fleft_far_m", "fright_clear_m", "fright_wide_m"
+        )
         require(self.scale > 0, "scale", "must be > 0")
         require(self.linear_mps >= 0, "linear_mps", "must be >= 0")
         require(self.angular_radps >= 0, "angular_radps", "must be >= 0")

@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.config_loader import require
+from platoon_sumo.config_loader import require, require_positive
 from platoon_sumo.sensors.laser import LaserScan
 
 FloatArray = NDArray[np.float64]
@@ -108,7 +108,8 @@ class TrackerParams:
     """... or this long without a hit [s], whichever comes first."""
 
     def __post_init__(self) -> None:
-        for key in (
+        require_positive(
+            self,
             "accel_noise_mps2",
             "meas_noise_m",
             "gate_chi2",
@@ -116,8 +117,7 @@ class TrackerParams:
             "start_lateral_m",
             "init_speed_std_mps",
             "lost_after_s",
-        ):
-            require(getattr(self, key) > 0, key, "must be > 0")
+        )
         require(self.confirm_scans >= 1, "confirm_scans", "must be >= 1")
         require(self.max_missed_scans >= 0, "max_missed_scans", "must be >= 0")
 

@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-from platoon_sumo.config_loader import require, require_choice
+from platoon_sumo.config_loader import require, require_choice, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 
@@ -60,10 +60,10 @@ class SpeedProfileParams:
 
     def __post_init__(self) -> None:
         require_choice(self.profile, _PROFILES, "profile")
-        for key in ("cruise_speed_mps", "period_s", "decel_mps2", "accel_mps2"):
-            require(getattr(self, key) > 0, key, "must be > 0")
-        for key in ("start_s", "amplitude_mps", "low_speed_mps", "hold_s"):
-            require(getattr(self, key) >= 0, key, "must be >= 0")
+        require_positive(self, "cruise_speed_mps", "period_s", "decel_mps2", "accel_mps2")
+        require_positive(
+            self, "start_s", "amplitude_mps", "low_speed_mps", "hold_s", allow_zero=True
+        )
         require(self.low_speed_mps <= self.cruise_speed_mps, "low_speed_mps",
                 "must be <= cruise_speed_mps")  # fmt: skip
         require(self.cycles is None or self.cycles >= 1, "cycles", "must be >= 1")
