@@ -53,13 +53,6 @@ class Network:
             e.getID(): e for e in self._net.getEdges(withInternal=False) if e.getFunction() == ""
         }
 
-    @property
-    def edge_ids(self) -> list[str]:
-        return sorted(self._normal_edges)
-
-    def has_edge(self, edge_id: str) -> bool:
-        return edge_id in self._normal_edges
-
     def edge_suggestion(self, edge_id: str) -> str | None:
         return did_you_mean(edge_id, self._normal_edges)
 
