@@ -1,9 +1,12 @@
 """The co-simulation loop: SUMO moves the humans, we move the platoons.
 
-One step (dt = SUMO's step length), in design.md's order:
-  snapshot of the world (read once) -> laser scans -> controllers -> vehicle models ->
-  poses pushed into SUMO -> simulationStep -> departures/arrivals -> safety checks ->
-  hooks (recorders and later features plug in there without editing this loop).
+One step (dt = SUMO's step length), as `CoSimulation.step` runs it:
+  insert due platoons (whole, when their first lane has room) -> laser scans at each
+  sensor's rate -> controllers -> supervisor -> vehicle models -> poses pushed into SUMO
+  -> simulationStep -> arrivals -> snapshot of the world (read once) -> departures ->
+  route progress (signals, links, lane changes, vehicle ahead) -> platoon relations and
+  events -> collision check -> hooks (recorders and later features plug in there
+  without editing this loop). docs/design.md walks through each stage.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from platoon_sumo.geometry import (
     overlapping_pairs,
     rectangles_crossing_segments,
 )
-from platoon_sumo.path import RoutePath
+from platoon_sumo.path import LaneChange, RoutePath
 from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids, rays_on_target
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
@@ -186,6 +189,7 @@ class CoSimulation:
         """Platoons not inserted yet (due ones wait for room on their first lane)."""
         self._waiting_insert: dict[str, MemberPlan] = {}
         self._paths: dict[tuple[str, ...], RoutePath] = {}
+        self._lanes: dict[str, tuple[FloatArray, float]] = {}
         self._overlapping: set[tuple[str, ...]] = set()
         self._sumo_contacts: set[tuple[str, str]] = set()
         self._linked: dict[str, bool] = {}
@@ -485,11 +489,14 @@ class CoSimulation:
             o for lane in change.target_lane_ids for o in self.backend.lane_occupants(lane)
         ]
         move_m = change.end_s_m - change.begin_s_m
-        if distance <= 0.0:  # under way: only the vehicle ahead in the target lane matters
+        if distance <= 0.0:  # under way: the vehicle ahead in the target lane, and sideways
             own = change.begin_lane_pos_m - distance
             ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
                      if pos - other_len > own - 1e-9]  # fmt: skip
             leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
+            hold = self._sideways_hold_m(v, change, occupants)
+            if hold is not None:
+                return LaneChangeAhead(hold, clear=False, target_leader=leader)
             return LaneChangeAhead(distance, clear=True, target_leader=leader)
         pace = max(speed, 5.0)
         for k in range(5):
@@ -502,7 +509,97 @@ class CoSimulation:
                 ahead_ok = predicted - other_len > own + 3.0 + 0.6 * pace
                 if not (behind or ahead_ok):
                     return LaneChangeAhead(distance, clear=False)
+        hold = self._sideways_hold_m(v, change, occupants)
+        if hold is not None:
+            return LaneChangeAhead(min(hold, distance), clear=False)
         return LaneChangeAhead(distance, clear=True)
+
+    #: Sideways clearance the route's lane change keeps to a vehicle alongside [m].
+    SIDE_CLEARANCE_M = 0.3
+
+    def _sideways_hold_m(
+        self,
+        v: PlatoonVehicle,
+        change: LaneChange,
+        occupants: list[tuple[str, float, float, float]],
+    ) -> float | None:
+        """Distance to where the sideways move must pause, or None to go on.
+
+        The gap check before a lane change predicts the target lane at constant speeds,
+        but a move over half a long edge takes many seconds. Worse, SUMO places a moved
+        vehicle on the lane under its centre: while our body straddles the lane line, the
+        drivers of the target lane do not see it (no shadow-lane registration for
+        moveToXY), so they neither brake nor swerve. Hence, every step:
+
+        - a vehicle on the target lane(s) *alongside* (bodies overlapping lengthwise,
+          with a margin): the move pauses where our side would come within
+          `SIDE_CLEARANCE_M` of its side;
+        - a vehicle *coming up from behind* or just ahead, close enough to reach us
+          before our centre is over the line: the move pauses before our body touches
+          the line; once the body is over the line the move goes on (stopping there
+          would leave us invisible to that lane), SUMO sees us once the centre crosses.
+
+        Braking stops the sideways motion too (a car's lateral progress needs forward
+        progress). Measured across the occupant's lane, its lateral position included.
+        """
+        world = self.world
+        if world is None or not occupants:
+            return None
+        speed = float(v.state.speed_mps[0])
+        cfg = v.platoon.config.vehicle
+        own_front = change.begin_lane_pos_m + (v.route_s_m - change.begin_s_m)
+        own_rear = own_front - cfg.length_m
+        start = max(v.route_s_m, change.begin_s_m)
+        stop = change.end_s_m
+        if stop <= start:
+            return None
+        reach = max(60.0, 4.0 * speed) + speed * speed / 5.0
+        samples = np.arange(start, min(stop, start + reach) + 0.5, 0.5)
+        points, _ = _path_points(v.path, samples)
+        lateral_on: dict[str, FloatArray] = {}
+        hold: float | None = None
+        for vid, pos, other_speed, other_len in occupants:
+            i = world.index.get(vid)
+            if vid == v.id or i is None or pos > own_front + 60.0 or pos < own_rear - 80.0:
+                continue
+            lane = world.lane_ids[i]
+            if not lane or lane.startswith(":"):
+                continue
+            shape, half_lane = self._lane_geometry(lane)
+            if lane not in lateral_on:
+                lateral_on[lane] = _lateral_offsets(shape, points)
+            lateral = lateral_on[lane]
+            front = np.array([[world.front_x_m[i], world.front_y_m[i]]])
+            other_lat = float(_lateral_offsets(shape, front)[0])
+            body_gap = np.abs(lateral - other_lat) - 0.5 * (cfg.width_m + float(world.width_m[i]))
+            line_gap = np.abs(lateral) - 0.5 * cfg.width_m - half_lane
+            # time until our centre is over the occupant's lane line
+            inside = np.nonzero(np.abs(lateral) < half_lane)[0]
+            to_centre_m = samples[inside[0] if inside.size else -1] - v.route_s_m
+            t_cross = to_centre_m / max(speed, 1.0)
+            alongside = pos - other_len < own_front + 1.0 and pos > own_rear - 1.0
+            if alongside:
+                bad = np.nonzero(body_gap < self.SIDE_CLEARANCE_M)[0]
+            else:
+                closing = other_speed - speed
+                behind_m = 3.0 + 0.5 * other_speed + max(closing, 0.0) * t_cross
+                ahead_m = 2.0 + max(-closing, 0.0) * t_cross
+                near = pos - other_len < own_front + ahead_m and pos > own_rear - behind_m
+                if not near or line_gap[0] < 0.0:
+                    continue  # far, or already over the line: commit
+                bad = np.nonzero(line_gap < 0.1)[0]
+            if bad.size:
+                at = float(samples[bad[0]]) - v.route_s_m
+                hold = at if hold is None else min(hold, at)
+        return hold
+
+    def _lane_geometry(self, lane_id: str) -> tuple[FloatArray, float]:
+        """A lane's centre-line and half width (cached)."""
+        found = self._lanes.get(lane_id)
+        if found is None:
+            found = (self.backend.lane_shape(lane_id), 0.5 * self.backend.lane_width(lane_id))
+            self._lanes[lane_id] = found
+        return found
 
     @staticmethod
     def _ahead_horizon_m(v: PlatoonVehicle) -> float:
@@ -577,3 +674,27 @@ def _passed(previous: SignalAhead, current: SignalAhead | None) -> bool:
         previous.link_index,
     )
     return not same and previous.distance_m < 50.0
+
+
+def _lateral_offsets(shape: FloatArray, points: FloatArray) -> FloatArray:
+    """Signed distance (left +) of each point from the nearest segment of a polyline."""
+    a = shape[:-1]
+    d = shape[1:] - a
+    rel = points[:, None, :] - a[None, :, :]
+    seg2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-18)
+    t = np.clip(np.einsum("nij,ij->ni", rel, d) / seg2, 0.0, 1.0)
+    closest = a[None, :, :] + t[:, :, None] * d[None, :, :]
+    dist2 = ((points[:, None, :] - closest) ** 2).sum(axis=2)
+    k = np.argmin(dist2, axis=1)
+    n = np.arange(len(points))
+    cross = d[k, 0] * rel[n, k, 1] - d[k, 1] * rel[n, k, 0]
+    return np.asarray(np.copysign(np.sqrt(dist2[n, k]), cross), dtype=np.float64)
+
+
+def _path_points(path: RoutePath, s_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Positions and headings of a path at many arc lengths (nearest sample point)."""
+    n = len(path.xy_m)
+    i = np.clip((np.asarray(s_m) / path.spacing_m).astype(np.int64), 0, n - 2)
+    d = path.xy_m[i + 1] - path.xy_m[i]
+    t = np.clip((np.asarray(s_m) - i * path.spacing_m) / path.spacing_m, 0.0, 1.0)
+    return path.xy_m[i] + d * t[:, None], np.arctan2(d[:, 1], d[:, 0])

@@ -32,7 +32,8 @@ class SupervisorConfig:
     (SUMO's own gap acceptance for this vehicle)."""
     wait_for_lane_change_gap: bool = True
     """Before a lane change of the route, wait (slow down, or stop where it begins) until
-    the target lane has a gap: the move itself is then not interrupted."""
+    the target lane has a gap; during the move, pause the sideways motion while a vehicle
+    on the target lane is alongside or about to be."""
     emergency_braking: bool = True
     """Brake at full capability when the vehicle ahead (SUMO's ground truth) is too close."""
     emergency_gap_m: float = 0.5

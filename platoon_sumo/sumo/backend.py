@@ -225,14 +225,18 @@ class SumoBackend:
             for vid in libsumo.lane.getLastStepVehicleIDs(lane_id)
         ]
 
+    def lane_shape(self, lane_id: str) -> NDArray[np.float64]:
+        """The lane's centre-line, (n, 2) network coordinates."""
+        return np.asarray(libsumo.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
+
+    def lane_width(self, lane_id: str) -> float:
+        return float(libsumo.lane.getWidth(lane_id))
+
     def departed_ids(self) -> tuple[str, ...]:
         return tuple(libsumo.simulation.getDepartedIDList())
 
     def arrived_ids(self) -> tuple[str, ...]:
         return tuple(libsumo.simulation.getArrivedIDList())
-
-    def pending_ids(self) -> tuple[str, ...]:
-        return tuple(libsumo.simulation.getPendingVehicles())
 
     def forget(self, vehicle_ids: Sequence[str]) -> None:
         for vid in vehicle_ids:
@@ -299,9 +303,6 @@ class SumoBackend:
         remaining = libsumo.lane.getLength(lane) - veh.getLanePosition(vehicle_id)
         return LinkAhead(str(state), bool(has_prio), bool(is_open), bool(has_foe), remaining)
 
-    def lane_position_m(self, vehicle_id: str) -> float:
-        return float(libsumo.vehicle.getLanePosition(vehicle_id))
-
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
         """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""
         found = libsumo.vehicle.getLeader(vehicle_id, horizon_m)
@@ -312,9 +313,6 @@ class SumoBackend:
         gap = float(found[1]) + libsumo.vehicle.getMinGap(vehicle_id)
         return VehicleAhead(other, gap, float(libsumo.vehicle.getSpeed(other)))
 
-    def min_gap_m(self, vehicle_id: str) -> float:
-        return float(libsumo.vehicle.getMinGap(vehicle_id))
-
     def teleport_count(self) -> int:
         return int(libsumo.simulation.getStartingTeleportNumber())
 
@@ -322,12 +320,6 @@ class SumoBackend:
         """Collisions SUMO itself detected this step: (collider, victim, type)."""
         for c in libsumo.simulation.getCollisions():
             yield c.collider, c.victim, c.type
-
-    def emergency_stopping_ids(self) -> tuple[str, ...]:
-        return tuple(libsumo.simulation.getEmergencyStoppingVehiclesIDList())
-
-    def min_expected_vehicles(self) -> int:
-        return int(libsumo.simulation.getMinExpectedNumber())
 
 
 def resolve_sumo_path(value: str) -> Path:
