@@ -97,7 +97,7 @@ def run(
     hooks: Sequence[StepHook] = (),
 ) -> RunResult:
     sc = plan.scenario
-    directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name)
+    directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name).resolve()
     directory.mkdir(parents=True, exist_ok=True)
     for stale in OUTPUT_FILES:
         (directory / stale).unlink(missing_ok=True)

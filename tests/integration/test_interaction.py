@@ -119,3 +119,22 @@ def test_same_scenario_and_seed_give_identical_outputs(write_scenario, tmp_path)
 def test_default_scenario_file_is_valid():
     plan = load_plan(REPO / "scenarios" / "urban_grid.yaml")
     assert plan.platoons and plan.scenario.traffic.random_trips is not None
+
+
+def test_a_relative_results_folder_works_from_any_working_directory(
+    write_scenario, tmp_path, monkeypatch
+):
+    scenario = write_scenario(
+        {
+            "simulation": {"step_s": 0.1, "end_s": 20.0, "seed": 1},
+            "network": {"net_file": str(URBAN_GRID_NET)},
+            "traffic": {"random_trips": {"period_s": 2.0}},
+            "platoons": [{"id": "p", "route": {"edges": EAST}, "depart_s": 1.0}],
+        }
+    )
+    workdir = tmp_path / "work"
+    workdir.mkdir()
+    monkeypatch.chdir(workdir)
+    result = run(load_plan(scenario), "results/relative")
+    assert result.summary["status"] == "complete"
+    assert (workdir / "results" / "relative" / "inputs" / "random.trips.xml").is_file()
