@@ -51,34 +51,30 @@ SIGNAL, YIELD, MERGE, EMERGENCY = "signal", "yield", "merge", "emergency"
 
 
 def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:
-    """The command to execute and what (if anything) the supervisor enforced."""
-    speed, state = command.speed_mps, ""
+    """The command to execute and what (if anything) the supervisor enforced.
+
+    Lights, minor links and lane changes without a gap are all stop points ahead, met
+    with the same braking rule (`signal_speed_limit`); the last resort is a Krauss safe
+    speed at full braking behind the vehicle ahead (and, during a lane change, the one
+    ahead in the target lane)."""
+    stops: list[tuple[SignalAhead | None, str]] = []
     if config.signals:
-        limit = signal_speed_limit(
-            obs.signal, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
-            config.yellow_max_decel_mps2, config.stop_margin_m,
-        )  # fmt: skip
-        if speed > limit:
-            speed, state = limit, SIGNAL
+        stops.append((obs.signal, SIGNAL))
     link = obs.link_ahead
     if config.yield_at_junctions and link is not None and link.must_yield:
-        # Held like a red light at the end of the lane until SUMO opens the link.
-        stop = SignalAhead("junction", -1, "r", link.distance_m)
+        # held like a red light at the end of the lane until SUMO opens the link
+        stops.append((SignalAhead("junction", -1, "r", link.distance_m), YIELD))
+    change = obs.lane_change
+    if config.wait_for_lane_change_gap and change is not None and not change.clear:
+        stops.append((SignalAhead("lane change", -1, "r", change.distance_m), MERGE))
+    speed, state = command.speed_mps, ""
+    for stop, reason in stops:
         limit = signal_speed_limit(
             stop, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
             config.yellow_max_decel_mps2, config.stop_margin_m,
         )  # fmt: skip
         if speed > limit:
-            speed, state = limit, YIELD
-    change = obs.lane_change
-    if config.wait_for_lane_change_gap and change is not None and not change.clear:
-        wait = SignalAhead("lane change", -1, "r", change.distance_m)
-        limit = signal_speed_limit(
-            wait, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
-            config.yellow_max_decel_mps2, config.stop_margin_m,
-        )  # fmt: skip
-        if speed > limit:
-            speed, state = limit, MERGE
+            speed, state = limit, reason
     leaders = [obs.vehicle_ahead, change.target_leader if change is not None else None]
     for ahead in leaders if config.emergency_braking else ():
         if ahead is None:
