@@ -46,7 +46,7 @@ def _run(tmp_path_factory: pytest.TempPathFactory, name: str, end_s: float):
     counter = TrafficCount()
     result = run(load_plan(REPO / "scenarios" / f"{name}.yaml", end_s=end_s), out, [counter])
     trajectories = out / "trajectories.csv"
-    traj = pd.read_csv(trajectories) if trajectories.exists() else None
+    traj = pd.read_csv(trajectories, low_memory=False) if trajectories.exists() else None
     return result.summary, traj, counter
 
 
