@@ -381,7 +381,7 @@ class CoSimulation:
                 front_offset_m=cfg.front_offset_m,
                 length_m=cfg.length_m,
                 width_m=cfg.width_m,
-                limits=cfg.limits(),
+                limits=v.platoon.limits,
                 path=v.path,
                 signal=v.signal,
                 link_ahead=v.link_ahead,
@@ -402,7 +402,7 @@ class CoSimulation:
         fx, fy, yaws, speeds = [], [], [], []
         for group in by_platoon.values():
             platoon = group[0].platoon
-            limits = platoon.config.vehicle.limits()
+            limits = platoon.limits
             state = KinematicState.of(
                 [float(v.state.x_m[0]) for v in group],
                 [float(v.state.y_m[0]) for v in group],

@@ -535,6 +535,8 @@ class PlatoonPlan:
     depart_lane: int
     members: tuple[MemberPlan, ...]
     model: type[VehicleModel]
+    limits: MotionLimits
+    """The vehicle's limits, built and checked once (the loop reads them every step)."""
 
     @property
     def type_id(self) -> str:
@@ -768,6 +770,7 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         depart_lane=depart_lane,
         members=tuple(members),
         model=VEHICLE_MODELS.get(p.vehicle.model),
+        limits=p.vehicle.limits(),
     )
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from platoon_sumo.config_loader import require
+from platoon_sumo.config_loader import require_positive
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
 from platoon_sumo.world import SignalAhead
@@ -40,10 +40,8 @@ class SupervisorConfig:
     """Standstill gap the emergency brake protects [m]; robots want a few centimetres."""
 
     def __post_init__(self) -> None:
-        for key in ("comfort_decel_mps2", "yellow_max_decel_mps2"):
-            require(getattr(self, key) > 0, key, "must be > 0")
-        for key in ("stop_margin_m", "emergency_gap_m"):
-            require(getattr(self, key) >= 0, key, "must be >= 0")
+        require_positive(self, "comfort_decel_mps2", "yellow_max_decel_mps2")
+        require_positive(self, "stop_margin_m", "emergency_gap_m", allow_zero=True)
 
 
 #: Supervisor states recorded per step ("" when the controller's command passed unchanged).

@@ -14,7 +14,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from platoon_sumo.config_loader import require
+from platoon_sumo.config_loader import require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
 from platoon_sumo.path import RoutePath
@@ -46,18 +46,11 @@ class RouteFollowingParams:
     """Reaction time of the car-following term (Krauss-style safe speed)."""
 
     def __post_init__(self) -> None:
-        for key in (
-            "lookahead_min_m",
-            "lookahead_time_s",
-            "max_lateral_accel_mps2",
-            "comfort_decel_mps2",
-            "yellow_max_decel_mps2",
-            "curvature_smoothing_m",
-        ):
-            require(getattr(self, key) > 0, key, "must be > 0")
-        require(self.stop_margin_m >= 0, "stop_margin_m", "must be >= 0")
-        require(self.standstill_gap_m >= 0, "standstill_gap_m", "must be >= 0")
-        require(self.time_gap_s >= 0, "time_gap_s", "must be >= 0")
+        require_positive(
+            self, "lookahead_min_m", "lookahead_time_s", "max_lateral_accel_mps2",
+            "comfort_decel_mps2", "yellow_max_decel_mps2", "curvature_smoothing_m",
+        )  # fmt: skip
+        require_positive(self, "stop_margin_m", "standstill_gap_m", "time_gap_s", allow_zero=True)
         require(0 < self.speed_limit_factor <= 2, "speed_limit_factor", "must be in (0, 2]")
         require(
             self.cruise_speed_mps is None or self.cruise_speed_mps > 0,
