@@ -3,10 +3,12 @@
 One step (dt = SUMO's step length), as `CoSimulation.step` runs it:
   insert due platoons (whole, when their first lane has room) -> laser scans at each
   sensor's rate -> controllers -> supervisor -> vehicle models -> poses pushed into SUMO
-  -> simulationStep -> arrivals -> snapshot of the world (read once) -> departures ->
-  route progress (signals, links, lane changes, vehicle ahead) -> platoon relations and
-  events -> collision check -> hooks (recorders and later features plug in there
-  without editing this loop). docs/design.md walks through each stage.
+  (planar actuation) or speeds handed to SUMO's driver (lane actuation) ->
+  simulationStep -> arrivals -> snapshot of the world (read once) -> departures ->
+  states of SUMO-driven members read back -> route progress (signals, links, lane
+  changes, vehicle ahead) -> platoon relations and events -> collision check -> hooks
+  (recorders and later features plug in there without editing this loop).
+  docs/design.md walks through each stage.
 """
 
 from __future__ import annotations
@@ -64,6 +66,8 @@ class PlatoonVehicle:
     """What the supervisor let through (the vehicle model's input)."""
     supervisor_state: str = ""
     """"" when the command passed unchanged, else what the supervisor enforced."""
+    sumo_capped: bool = False
+    """Lane actuation: SUMO held the vehicle below its executed command this step."""
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
     lane_change: LaneChangeAhead | None = None
@@ -78,6 +82,11 @@ class PlatoonVehicle:
     @property
     def platoon_id(self) -> str:
         return self.plan.platoon_id
+
+    @property
+    def sumo_drives(self) -> bool:
+        """Lane actuation: SUMO moves it at our commanded speed (else we place it)."""
+        return self.platoon.config.actuation == "lane"
 
     @property
     def index(self) -> int:
@@ -156,6 +165,8 @@ class RunCounters:
     sumo_collisions: int = 0
     teleports: int = 0
     emergency_brakings: int = 0
+    sumo_speed_caps: int = 0
+    """Lane actuation: times SUMO's safety layer held a vehicle below its command."""
     removed_off_route: list[RemovedVehicle] = field(default_factory=list)
     platoon_arrived: list[str] = field(default_factory=list)
     platoon_departed: list[str] = field(default_factory=list)
@@ -229,6 +240,7 @@ class CoSimulation:
         self._handle_arrivals()
         world = self.world = self.backend.snapshot()
         self._handle_departures(world)
+        self._read_sumo_driven(world)
         violations = self._update_route_progress(list(self.active.values()))
         vehicles = list(self.active.values())  # those that reached their route's end are gone
         self.rects = self.footprints(world)
@@ -268,6 +280,7 @@ class CoSimulation:
                     platoon.type_id,
                     platoon.depart_lane,
                     member.depart_pos_m,
+                    sumo_drives=cfg.actuation == "lane",
                 )
                 self._waiting_insert[member.vehicle_id] = member
 
@@ -383,6 +396,7 @@ class CoSimulation:
                 width_m=cfg.width_m,
                 limits=v.platoon.limits,
                 path=v.path,
+                lane_offset_m=v.lateral_offset_m if v.sumo_drives else 0.0,
                 signal=v.signal,
                 link_ahead=v.link_ahead,
                 lane_change=v.lane_change,
@@ -394,10 +408,18 @@ class CoSimulation:
             if enforced == EMERGENCY and v.supervisor_state != EMERGENCY:
                 self.counters.emergency_brakings += 1
             v.supervisor_state = enforced
+        driven = [v for v in vehicles if v.sumo_drives]
+        if driven:
+            self.backend.set_speeds(
+                [v.id for v in driven], np.array([v.executed.speed_mps for v in driven])
+            )
         # Integrate per platoon: members share a model and limits, so one vectorised call.
         by_platoon: dict[str, list[PlatoonVehicle]] = {}
         for v in vehicles:
-            by_platoon.setdefault(v.platoon.config.id, []).append(v)
+            if not v.sumo_drives:
+                by_platoon.setdefault(v.platoon.config.id, []).append(v)
+        if not by_platoon:
+            return
         ids: list[str] = []
         fx, fy, yaws, speeds = [], [], [], []
         for group in by_platoon.values():
@@ -437,6 +459,41 @@ class CoSimulation:
             del self.active[vid]
             self.counters.removed_off_route.append(RemovedVehicle(world.time_s, vid, reason))
 
+    #: Supervisor state of a SUMO-driven vehicle whose safety layer held it below the
+    #: executed command (its safe speed, a light, right of way, a lane change).
+    SUMO_SAFETY = "sumo"
+
+    def _read_sumo_driven(self, world: WorldSnapshot) -> None:
+        """Lane actuation: SUMO moved the vehicle; its pose and speed become the state.
+
+        Where SUMO's speed stays clearly below what the command and the acceleration
+        limit allowed, SUMO's safety layer acted: named in the supervisor state and
+        counted once per episode."""
+        for v in self.active.values():
+            i = world.index.get(v.id)
+            if not v.sumo_drives or i is None:
+                continue
+            yaw = float(world.yaw_rad[i])
+            speed = float(world.speed_mps[i])
+            previous = float(v.state.speed_mps[0])
+            offset = v.front_offset_m
+            v.state = KinematicState.of(
+                float(world.front_x_m[i]) - offset * math.cos(yaw),
+                float(world.front_y_m[i]) - offset * math.sin(yaw),
+                yaw,
+                speed,
+            )
+            v.accel_mps2 = (speed - previous) / self.dt_s
+            allowed = min(
+                v.executed.speed_mps, previous + v.platoon.limits.max_accel_mps2 * self.dt_s
+            )
+            capped = speed < allowed - 0.01
+            if capped and not v.sumo_capped:
+                self.counters.sumo_speed_caps += 1
+            v.sumo_capped = capped
+            if capped and not v.supervisor_state:
+                v.supervisor_state = self.SUMO_SAFETY
+
     # ------------------------------------------------------------------ bookkeeping
 
     def _update_route_progress(self, vehicles: list[PlatoonVehicle]) -> list[RedLightViolation]:
@@ -446,6 +503,7 @@ class CoSimulation:
             fx, fy = v.front_bumper()
             window = max(10.0, 4.0 * v.platoon.config.vehicle.length_m)
             point = v.path.project(fx, fy, s_hint_m=v.route_s_m, window_m=window)
+            travelled_m = max(point.s_m - v.route_s_m, 0.0)
             v.route_s_m, v.lateral_offset_m = point.s_m, point.lateral_offset_m
             previous, v.signal = v.signal, self.backend.next_signal(v.id)
             v.vehicle_ahead = self.backend.vehicle_ahead(v.id, self._ahead_horizon_m(v))
@@ -454,7 +512,7 @@ class CoSimulation:
             if (
                 previous is not None
                 and previous.state in ("r", "u")
-                and _passed(previous, v.signal)
+                and crossed_stop_line(previous, v.signal, travelled_m)
             ):
                 violation = RedLightViolation(
                     time_s, v.id, previous.tls_id, previous.link_index, previous.state
@@ -477,8 +535,8 @@ class CoSimulation:
         it must stay a time gap of its own behind us or a gap of ours ahead. During the
         move, the nearest vehicle ahead on the target lane is reported for braking.
         """
-        change = v.path.next_lane_change(v.route_s_m)
-        if change is None:
+        change = None if v.sumo_drives else v.path.next_lane_change(v.route_s_m)
+        if change is None:  # SUMO makes a SUMO-driven vehicle's lane changes
             return None
         distance = change.begin_s_m - v.route_s_m
         speed = float(v.state.speed_mps[0])
@@ -667,13 +725,18 @@ class CoSimulation:
         return new
 
 
-def _passed(previous: SignalAhead, current: SignalAhead | None) -> bool:
-    """Did the vehicle drive over `previous`'s stop line during the last step?"""
+def crossed_stop_line(
+    previous: SignalAhead, current: SignalAhead | None, travelled_m: float
+) -> bool:
+    """Did the vehicle drive over `previous`'s stop line during the last step?
+
+    The signal ahead also changes when a lane change puts another link of the same light
+    ahead: only a line within the distance just travelled counts as passed."""
     same = current is not None and (current.tls_id, current.link_index) == (
         previous.tls_id,
         previous.link_index,
     )
-    return not same and previous.distance_m < 50.0
+    return not same and previous.distance_m <= travelled_m + 0.25
 
 
 def _lateral_offsets(shape: FloatArray, points: FloatArray) -> FloatArray:

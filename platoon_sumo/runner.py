@@ -128,6 +128,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         route_files=tuple(str(p) for p in (*plan.route_files, *generated)),
         additional_files=(*(str(p) for p in plan.additional_files), *extra_additional),
         lateral_resolution_m=sc.simulation.lateral_resolution_m,
+        demand_scale=sc.traffic.scale,
         tripinfo_file=str(directory / "tripinfo.csv") if sc.outputs.tripinfo else None,
         statistics_file=str(directory / "sumo_statistics.xml"),
         extra_args=sumo_output_args(directory) if out.sumo_outputs else (),
@@ -154,7 +155,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
             v = platoon.config.vehicle
             backend.add_vehicle_type(
                 platoon.type_id, v.length_m, v.width_m, v.min_gap_m, v.max_speed_mps,
-                v.max_accel_mps2, v.max_decel_mps2, v.vclass,
+                v.max_accel_mps2, v.max_decel_mps2, v.vclass, v.sumo_tau_s,
             )  # fmt: skip
         sim = CoSimulation(
             plan,
@@ -235,6 +236,7 @@ def _summary(
         "sumo_collisions": counters.sumo_collisions,
         "teleports": counters.teleports,
         "emergency_brakings": counters.emergency_brakings,
+        "sumo_speed_caps": counters.sumo_speed_caps,
         "red_light_violations": len(counters.red_light_violations),
         "red_light_events": [dataclasses.asdict(v) for v in counters.red_light_violations],
     }

@@ -29,6 +29,9 @@ from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
 
+#: How a platoon's commands reach SUMO (see PlatoonConfig.actuation).
+ACTUATIONS = ("planar", "lane")
+
 VEHICLE_CLASSES = (
     "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
     "hov", "taxi", "bus", "coach", "delivery", "truck", "trailer", "motorcycle", "moped",
@@ -54,8 +57,10 @@ class SimulationConfig:
     """Simulated time at which SUMO starts [s]."""
     seed: int = 42
     """Seeds SUMO and every random generator of ours."""
-    lateral_resolution_m: float = 0.8
-    """SUMO sublane resolution; without it pushed poses snap to lane centres."""
+    lateral_resolution_m: float | None = 0.8
+    """SUMO sublane resolution [m]: planar platoons need it (without it their poses snap
+    to lane centres and SUMO drivers miss a car between lanes). null: no sublane model,
+    SUMO's lane changes take one step (enough when every platoon uses `actuation: lane`)."""
 
     def __post_init__(self) -> None:
         require(math.isfinite(self.step_s), "step_s", "must be a finite number")
@@ -64,7 +69,11 @@ class SimulationConfig:
         require(self.step_s <= 1.0, "step_s", f"must be <= 1 s, got {self.step_s}")
         require(self.end_s > self.begin_s, "end_s", "must be after begin_s")
         require(self.seed >= 0, "seed", "must be >= 0")
-        require(self.lateral_resolution_m > 0, "lateral_resolution_m", "must be > 0")
+        require(
+            self.lateral_resolution_m is None or self.lateral_resolution_m > 0,
+            "lateral_resolution_m",
+            "must be > 0 (or null: no sublane model)",
+        )
 
 
 @dataclass(frozen=True)
@@ -214,8 +223,12 @@ class TrafficConfig:
     """Flows of human-driven vehicles between two edges, routed by SUMO."""
     random_trips: RandomTripsConfig | None = None
     """Random trips all over the network (null: none)."""
+    scale: float = 1.0
+    """Multiplies all human-driven demand (route files, flows, random trips): SUMO's
+    `--scale`, e.g. 0.5 keeps every second vehicle. Platoons are not scaled."""
 
     def __post_init__(self) -> None:
+        require_positive(self, "scale")
         ids = [t.id for t in self.vehicle_types]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         require(
@@ -277,6 +290,10 @@ class VehicleConfig:
     """Front-wheel steering limit [rad] (bicycle model)."""
     vclass: str = "passenger"
     """SUMO vehicle class of the platoon's vehicle type."""
+    sumo_tau_s: float = 1.0
+    """SUMO's driver time headway (tau) for the platoon's vehicle type [s]; matters with
+    `actuation: lane` only, where SUMO's safe speed, computed with it, caps the command
+    (smaller: SUMO lets the vehicle follow closer)."""
 
     def __post_init__(self) -> None:
         require_choice(self.model, VEHICLE_MODELS.names(), "model")
@@ -290,6 +307,7 @@ class VehicleConfig:
             "max_accel_mps2",
             "max_decel_mps2",
             "max_yaw_rate_radps",
+            "sumo_tau_s",
         )
         require(self.min_gap_m >= 0, "min_gap_m", "must be >= 0")
         require(0 < self.max_steer_rad < math.pi / 2, "max_steer_rad", "must be in (0, pi/2)")
@@ -362,6 +380,12 @@ class PlatoonConfig:
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
     """Geometry, motion model and limits of the members."""
+    actuation: str = "planar"
+    """How commands reach SUMO. `planar`: the vehicle model integrates speed and heading
+    and the pose is placed into SUMO (free lateral motion: robots, the paper's world, our
+    own lane changes). `lane`: SUMO drives the vehicle along its lanes (lane keeping, the
+    route's lane changes, its safe speed at junctions and lights as the last safety
+    layer) at the speed the controller and supervisor command; heading is SUMO's."""
     split_gap_m: float = 60.0
     """Without a laser, a follower farther than this from its predecessor counts as split
     from it (with a laser: when the predecessor is out of its scan) [m]."""
@@ -381,6 +405,7 @@ class PlatoonConfig:
             bool(self.id) and " " not in self.id and "." not in self.id,
             "id", "must be a non-empty name without spaces or dots",
         )  # fmt: skip
+        require_choice(self.actuation, ACTUATIONS, "actuation")
         require(self.members >= 1, "members", "must be >= 1")
         require(self.members <= 100, "members", "must be <= 100")
         require(self.spacing_m > 0, "spacing_m", "must be > 0")
@@ -582,6 +607,13 @@ def prepare(source: ScenarioSource) -> RunPlan:
         raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
+    planar = [key for p, key in declared if p.actuation == "planar"]
+    if planar and sc.simulation.lateral_resolution_m is None:
+        raise ScenarioError(
+            file, "simulation.lateral_resolution_m",
+            f"{planar[0]} uses planar actuation, which needs SUMO's sublane model",
+            "set it (e.g. 0.8), or give the platoons `actuation: lane`",
+        )  # fmt: skip
     platoons = tuple(
         _prepare_platoon(p, key, network, file)
         for p, key in [*declared, *_platoons_from_flows(sc, file)]

@@ -397,6 +397,26 @@ CASES = [
             put("platoons.0.follower", {"params": {"time_gap_s": "long"}}),
         ),
     ),
+    Case(
+        "unknown_actuation",
+        "platoons[0].actuation",
+        ("'lanes'", "planar", "lane"),
+        put("platoons.0.actuation", "lanes"),
+        hint="did you mean 'lane'?",
+    ),
+    Case(
+        "planar_platoon_without_sublane_model",
+        "simulation.lateral_resolution_m",
+        ("platoons[0] uses planar actuation", "sublane model"),
+        put("simulation.lateral_resolution_m", None),
+        hint="actuation: lane",
+    ),
+    Case(
+        "demand_scale_not_positive",
+        "traffic.scale",
+        ("must be > 0",),
+        put("traffic.scale", 0),
+    ),
 ]
 
 RUN_CASES = {

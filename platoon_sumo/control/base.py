@@ -37,6 +37,10 @@ class Observation:
     width_m: float
     limits: MotionLimits
     path: RoutePath
+    lane_offset_m: float = 0.0
+    """Lateral offset (left +) of the lane the vehicle drives in from `path`: 0 when the
+    controller steers along the path; with `actuation: lane` SUMO picks the lane among
+    those that continue the route, so it may lie a lane or two beside the path."""
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
     """The junction link at the end of the current lane with SUMO's right-of-way view."""

@@ -15,8 +15,10 @@ Each step:
    predecessor's rear position and velocity.
    **Route corridor** (``corridor_half_width_m``, on by default): a rear counts as on
    the route when, projected onto ``observation.path`` near the follower's own arc
-   length, it lies ahead and within the corridor half-width of the route's centre-line
-   (default: half the lane width there plus ``corridor_margin_rel`` lane widths). A
+   length, it lies ahead and within the corridor half-width of the centre-line of the
+   lane the follower drives in (the route's own, or ``observation.lane_offset_m``
+   beside it when SUMO picks the lane; default half-width: half the lane width there
+   plus ``corridor_margin_rel`` lane widths). A
    track starts only on such a rear (not on a car in the neighbouring lane), and a
    track whose rear stays outside the corridor for more than ``corridor_exit_s`` is
    dropped (the predecessor turned off the route: lost, see 5.) instead of being
@@ -338,7 +340,7 @@ class LaserFollower:
             i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
             lane = float(path.lane_width_m[i])
             half_width = (0.5 + self.params.corridor_margin_rel) * lane
-        return abs(at.lateral_offset_m) <= half_width
+        return abs(at.lateral_offset_m - obs.lane_offset_m) <= half_width
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""

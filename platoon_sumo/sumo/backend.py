@@ -1,8 +1,8 @@
 """The only module that talks to SUMO (through libsumo).
 
 State is read once per step, in batch, into numpy arrays; platoon vehicles are pushed
-back with moveToXY + setPreviousSpeed. Every libsumo failure becomes a SumoError that
-says what we were doing.
+back with moveToXY + setPreviousSpeed (planar actuation) or get a speed through setSpeed
+(lane actuation). Every libsumo failure becomes a SumoError that says what we were doing.
 """
 
 from __future__ import annotations
@@ -20,6 +20,11 @@ from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
 from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
+
+#: SUMO's laneChangeMode bits: strategic changes (1) respecting others' speed and braking
+#: gaps (512) with sublane adjustments (1024); no cooperative, speed-gain or keep-right
+#: changes (SUMO's default is 1621).
+LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -49,6 +54,7 @@ class SumoOptions:
     route_files: tuple[str, ...] = ()
     additional_files: tuple[str, ...] = ()
     lateral_resolution_m: float | None = 0.8
+    demand_scale: float = 1.0
     tripinfo_file: str | None = None
     statistics_file: str | None = None
     extra_args: tuple[str, ...] = ()
@@ -70,6 +76,8 @@ class SumoOptions:
             "--duration-log.disable", "true",
             "--xml-validation", "never",
         ]  # fmt: skip
+        if self.demand_scale != 1.0:
+            cmd += ["--scale", repr(self.demand_scale)]
         if self.lateral_resolution_m is not None:
             cmd += ["--lateral-resolution", repr(self.lateral_resolution_m)]
         if self.route_files:
@@ -161,8 +169,14 @@ class SumoBackend:
         depart_lane: int,
         depart_pos_m: float,
         depart_speed_mps: float = 0.0,
+        sumo_drives: bool = False,
     ) -> None:
-        """Ask SUMO to insert a platoon vehicle now; it appears once there is room."""
+        """Ask SUMO to insert a platoon vehicle now; it appears once there is room.
+
+        `sumo_drives` (lane actuation): SUMO keeps the vehicle in its lanes and makes the
+        route's lane changes, and its safe speed, lights and right of way cap our speed
+        command; it makes no lane change of its own accord (speed gain, keeping right,
+        cooperation) so members stay in one lane."""
         route_id = f"route_{vehicle_id}"
         try:
             libsumo.route.add(route_id, list(edges))
@@ -175,9 +189,11 @@ class SumoBackend:
                 departPos=repr(depart_pos_m),
                 departSpeed=repr(depart_speed_mps),
             )
-            # We drive it: SUMO must neither brake it by its own rules nor change its lane.
-            libsumo.vehicle.setSpeedMode(vehicle_id, 0)
-            libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
+            if sumo_drives:
+                libsumo.vehicle.setLaneChangeMode(vehicle_id, LANE_CHANGE_STRATEGIC_ONLY)
+            else:  # we place it: SUMO must neither brake it nor change its lane
+                libsumo.vehicle.setSpeedMode(vehicle_id, 0)
+                libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
         except libsumo.TraCIException as exc:
             raise SumoError(f"cannot insert vehicle '{vehicle_id}': {exc}") from None
 
@@ -191,8 +207,10 @@ class SumoBackend:
         accel_mps2: float,
         decel_mps2: float,
         vclass: str,
+        tau_s: float = 1.0,
     ) -> None:
-        """A SUMO type for platoon vehicles, so SUMO's drivers see their true size."""
+        """A SUMO type for platoon vehicles, so SUMO's drivers see their true size; without
+        driver imperfection, and with `tau_s` for SUMO's safe speed in lane actuation."""
         vt = libsumo.vehicletype
         try:
             vt.copy("DEFAULT_VEHTYPE", type_id)
@@ -204,6 +222,8 @@ class SumoBackend:
             vt.setAccel(type_id, accel_mps2)
             vt.setDecel(type_id, decel_mps2)
             vt.setEmergencyDecel(type_id, max(decel_mps2, vt.getEmergencyDecel(type_id)))
+            vt.setTau(type_id, tau_s)
+            vt.setImperfection(type_id, 0.0)
             vt.setColor(type_id, (30, 120, 255, 255))
         except Exception as exc:  # libsumo raises FatalTraCIError for some bad values
             raise SumoError(f"cannot create vehicle type '{type_id}': {exc}") from None
@@ -268,6 +288,12 @@ class SumoBackend:
                     f"at t={self.time_s:.2f} s: {exc}"
                 )
         return failed
+
+    def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: NDArray[np.float64]) -> None:
+        """Speed commands for SUMO-driven (lane actuation) platoon vehicles, next step."""
+        veh = libsumo.vehicle
+        for vid, speed in zip(vehicle_ids, speed_mps, strict=True):
+            veh.setSpeed(vid, float(speed))
 
     def discard(self, vehicle_id: str) -> None:
         """Take a platoon vehicle out that can no longer be placed on its route."""

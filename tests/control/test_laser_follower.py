@@ -125,6 +125,7 @@ def observe(
     rects: list[list[float]],
     segments: list[list[float]] | None = None,
     rng: np.random.Generator | None = None,
+    lane_offset_m: float = 0.0,
 ) -> Observation:
     origin = me.bumper
     ranges = cast_rays(origin, me.yaw, laser, rects or None, segments, rng)
@@ -143,6 +144,7 @@ def observe(
         width_m=me.width_m,
         limits=limits,
         path=path,
+        lane_offset_m=lane_offset_m,
         scan=scan,
     )
 
@@ -594,12 +596,17 @@ def test_corridor_params_are_checked():
         load_dataclass(LaserFollowerParams, {"corridor_exit_s": -0.1}, "s.yaml", "params")
 
 
-def corridor_open_loop(rects, me: Vehicle, path: RoutePath, params: LaserFollowerParams, steps=10):
+def corridor_open_loop(
+    rects, me: Vehicle, path: RoutePath, params: LaserFollowerParams, steps=10, lane_offset_m=0.0
+):
     ctrl = LaserFollower(params)
     rng = np.random.default_rng(4)
     cmd = None
     for k in range(steps):
-        obs = observe(me, k * 0.1, 0.1, CAR_LASER, CAR_LIMITS, path, rects, rng=rng)
+        obs = observe(
+            me, k * 0.1, 0.1, CAR_LASER, CAR_LIMITS, path, rects, rng=rng,
+            lane_offset_m=lane_offset_m,
+        )  # fmt: skip
         cmd = ctrl.step(obs)
     assert cmd is not None
     return ctrl, cmd
@@ -628,6 +635,26 @@ def test_car_in_the_neighbouring_lane_is_not_taken_for_a_predecessor(corridor):
     )
     assert ctrl.mode == "following" and ctrl.track is not None
     assert math.hypot(ctrl.track.x_m - own.rear[0], ctrl.track.y_m - own.rear[1]) < 0.2
+
+
+def test_corridor_follows_the_lane_sumo_drives_in_beside_the_route():
+    """With `actuation: lane` SUMO may drive the platoon one lane left of the route's
+    own lane: the corridor is centred on that lane (`lane_offset_m`), so the predecessor
+    ahead in it is followed and a car in the route's own lane is not."""
+    params = LaserFollowerParams(
+        on_lost="route_following", tracker=TrackerParams(start_lateral_m=4.0)
+    )
+    me = car(0.0, y=3.2, v=8.0)
+    ahead_in_my_lane = car_with_rear(CAR_FRONT + 12.0, 3.3)
+    in_route_lane = car_with_rear(CAR_FRONT + 5.0, 0.0)
+    rects = [ahead_in_my_lane.rect, in_route_lane.rect]
+    ctrl, _ = corridor_open_loop(rects, me, straight_path(), params, lane_offset_m=3.2)
+    assert ctrl.mode == "following" and ctrl.track is not None
+    rear = ahead_in_my_lane.rear
+    assert math.hypot(ctrl.track.x_m - rear[0], ctrl.track.y_m - rear[1]) < 0.2
+    # measured from the route's own lane, the same predecessor is outside the corridor
+    ctrl, _ = corridor_open_loop([ahead_in_my_lane.rect], me, straight_path(), params)
+    assert ctrl.mode == "route_following" and ctrl.track is None
 
 
 @pytest.mark.parametrize("corridor", ["lane", None])
