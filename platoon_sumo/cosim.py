@@ -163,6 +163,7 @@ class RunCounters:
     collisions: list[Collision] = field(default_factory=list)
     red_light_violations: list[RedLightViolation] = field(default_factory=list)
     sumo_collisions: int = 0
+    sumo_collisions_with_platoons: int = 0
     teleports: int = 0
     emergency_brakings: int = 0
     sumo_speed_caps: int = 0
@@ -235,7 +236,11 @@ class CoSimulation:
         self.counters.steps += 1
         self.counters.teleports += self.backend.teleport_count()
         sumo_contacts = {(a, b) for a, b, _ in self.backend.sumo_collisions()}
-        self.counters.sumo_collisions += len(sumo_contacts - self._sumo_contacts)
+        new_contacts = sumo_contacts - self._sumo_contacts
+        self.counters.sumo_collisions += len(new_contacts)
+        self.counters.sumo_collisions_with_platoons += sum(
+            a in self.active or b in self.active for a, b in new_contacts
+        )
         self._sumo_contacts = sumo_contacts
         self._handle_arrivals()
         world = self.world = self.backend.snapshot()
@@ -412,6 +417,9 @@ class CoSimulation:
         if driven:
             self.backend.set_speeds(
                 [v.id for v in driven], np.array([v.executed.speed_mps for v in driven])
+            )
+            self.backend.request_lane_changes(
+                {v.id: v.executed.lane_change for v in driven if v.executed.lane_change}
             )
         # Integrate per platoon: members share a model and limits, so one vectorised call.
         by_platoon: dict[str, list[PlatoonVehicle]] = {}

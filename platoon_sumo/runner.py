@@ -234,6 +234,7 @@ def _summary(
         "collisions": len(counters.collisions),
         "collision_events": [dataclasses.asdict(c) for c in counters.collisions],
         "sumo_collisions": counters.sumo_collisions,
+        "sumo_collisions_with_platoons": counters.sumo_collisions_with_platoons,
         "teleports": counters.teleports,
         "emergency_brakings": counters.emergency_brakings,
         "sumo_speed_caps": counters.sumo_speed_caps,

@@ -46,7 +46,7 @@ def run_one(name: str, out_root: str, end_s: float | None) -> dict[str, Any]:
 def row(result: dict[str, Any]) -> list[str]:
     name = result["name"]
     if "error" in result:
-        return [name, "FAILED: " + result["error"].replace("|", "/"), *[""] * 11]
+        return [name, "FAILED: " + result["error"].replace("|", "/"), *[""] * (len(HEADER) - 2)]
     s = result["summary"]
     pv, av = s["platoon_vehicles"], s["all_vehicles"]
     events = s.get("platoon_events", {})
@@ -67,7 +67,8 @@ def row(result: dict[str, Any]) -> list[str]:
         str(s["teleports"]),
         str(s["red_light_violations"]),
         str(s.get("emergency_brakings", "-")),
-        str(s.get("sumo_collisions", "-")),
+        str(s.get("sumo_speed_caps", "-")),
+        f"{s.get('sumo_collisions', '-')} ({s.get('sumo_collisions_with_platoons', '-')})",
         " / ".join(str(events.get(k, "-")) for k in ("splits", "reformations", "cut_ins")),
     ]
 
@@ -75,7 +76,8 @@ def row(result: dict[str, Any]) -> list[str]:
 HEADER = [
     "scenario", "simulated s", "real-time factor", "platoons", "platoon vehicles",
     "arrived/departed", "SUMO vehicles", "footprint collisions", "teleports",
-    "red-light violations", "emergency brakings", "SUMO collision reports",
+    "red-light violations", "emergency brakings", "SUMO speed caps",
+    "SUMO collision reports (with platoons)",
     "splits / re-formations / cut-ins",
 ]  # fmt: skip
 

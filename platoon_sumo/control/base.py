@@ -59,6 +59,10 @@ class Command:
     speed_mps: float
     yaw_rate_radps: float = 0.0
     heading_rad: float | None = None
+    lane_change: int = 0
+    """With `actuation: lane` (where SUMO steers): ask SUMO to move to the next lane to
+    the left (+1) or right (-1); SUMO makes the change when its gap is safe. Planar
+    actuation steers with the yaw rate / heading instead and ignores this."""
 
 
 @runtime_checkable

@@ -35,7 +35,11 @@ Each step:
    on the leader's line); ``steer_at="predecessor"`` aims at the predecessor's current
    rear instead (what a naive follower does; it cuts corners) for comparison. While the
    rear is outside the route corridor the steering never aims at it: the trail (inside
-   the corridor) is followed and, once it is used up, the own route.
+   the corridor) is followed and, once it is used up, the own route. Where SUMO steers
+   (``actuation: lane``) the same intent becomes a lane request: a predecessor seen
+   more than half a lane beside the own lane asks SUMO for the change towards it (the
+   platoon follows its leader's lane changes; widen ``corridor_margin_rel`` to about 1.2
+   so a predecessor one lane over stays tracked meanwhile).
 5. **Lost** (no confirmed track): ``on_lost="stop"`` brakes at ``comfort_decel_mps2``
    while steering along what is left of the trail; ``on_lost="route_following"`` hands
    over to a ``RouteFollowing`` on ``observation.path`` (without ``vehicle_ahead``, its
@@ -323,11 +327,13 @@ class LaserFollower:
         window = max(4.0 * obs.length_m, 2.0 * self._lookahead(obs))
         self._route_s = obs.path.project(obs.x_m, obs.y_m, self._route_s, window).s_m
 
-    def _in_corridor(self, obs: Observation, x_m: float, y_m: float) -> bool:
-        """Does the world point lie ahead on the own route, within the corridor?"""
-        half_width = self.params.corridor_half_width_m
-        if half_width is None or self._route_s is None:
-            return True
+    def _beside_own_lane(
+        self, obs: Observation, x_m: float, y_m: float
+    ) -> tuple[float, float] | None:
+        """(offset from the own lane's centre-line, lane width there) of a world point
+        ahead on the own route [m]; None when it is not ahead."""
+        if self._route_s is None:
+            return None
         path, s0 = obs.path, self._route_s
         # search from the own arc length to a few vehicle lengths beyond the point's range
         reach = 0.5 * (
@@ -335,12 +341,30 @@ class LaserFollower:
         )
         at = path.project(x_m, y_m, s0 + reach, reach)
         if at.s_m <= s0:
+            return None
+        i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
+        return at.lateral_offset_m - obs.lane_offset_m, float(path.lane_width_m[i])
+
+    def _in_corridor(self, obs: Observation, x_m: float, y_m: float) -> bool:
+        """Does the world point lie ahead on the own route, within the corridor?"""
+        half_width = self.params.corridor_half_width_m
+        if half_width is None or self._route_s is None:
+            return True
+        beside = self._beside_own_lane(obs, x_m, y_m)
+        if beside is None:
             return False
+        offset, lane = beside
         if half_width == "lane":
-            i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
-            lane = float(path.lane_width_m[i])
             half_width = (0.5 + self.params.corridor_margin_rel) * lane
-        return abs(at.lateral_offset_m - obs.lane_offset_m) <= half_width
+        return abs(offset) <= half_width
+
+    def _lane_request(self, obs: Observation, x_m: float, y_m: float) -> int:
+        """Where SUMO steers (lane actuation): +1 / -1 to follow a predecessor the laser
+        sees more than half a lane to the left / right of the own lane, else 0."""
+        beside = self._beside_own_lane(obs, x_m, y_m) if self._in_view else None
+        if beside is None or abs(beside[0]) <= 0.5 * beside[1]:
+            return 0
+        return 1 if beside[0] > 0.0 else -1
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""
@@ -437,7 +461,9 @@ class LaserFollower:
             x_m=rx,
             y_m=ry,
         )
-        return Command(speed_mps=speed, yaw_rate_radps=yaw_rate)
+        return Command(
+            speed_mps=speed, yaw_rate_radps=yaw_rate, lane_change=self._lane_request(obs, rx, ry)
+        )
 
     def _trail_length(self, obs: Observation, end: tuple[float, float]) -> float:
         """Length of the trail from the front bumper to ``end`` (the predecessor's rear)."""

@@ -106,6 +106,10 @@ class RouteFollowing:
             )
         )
         tx, ty = path.point_at(self._s_m + lookahead)
+        if obs.lane_offset_m:  # aim along the lane SUMO drives in, beside the path's own
+            heading = path.heading_at(self._s_m + lookahead)
+            tx -= obs.lane_offset_m * math.sin(heading)
+            ty += obs.lane_offset_m * math.cos(heading)
         dx, dy = tx - obs.x_m, ty - obs.y_m
         dist = math.hypot(dx, dy)
         alpha = math.atan2(dy, dx) - obs.yaw_rad

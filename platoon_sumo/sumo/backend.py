@@ -26,6 +26,9 @@ from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapsh
 #: changes (SUMO's default is 1621).
 LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
 
+#: How long a lane request holds [s]: re-issued every step while the controller asks.
+LANE_REQUEST_S = 0.5
+
 
 def sumo_binary(name: str = "sumo") -> str:
     """Path of a SUMO executable shipped in the eclipse-sumo wheel (no SUMO_HOME needed)."""
@@ -294,6 +297,20 @@ class SumoBackend:
         veh = libsumo.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps, strict=True):
             veh.setSpeed(vid, float(speed))
+
+    def request_lane_changes(self, requests: dict[str, int]) -> None:
+        """Lane actuation: ask SUMO to change each vehicle one lane left (+1) or right (-1).
+
+        SUMO makes the change when the target lane's gap is safe (lane-change mode); a
+        request for a lane that does not exist is dropped, as a driver would."""
+        veh = libsumo.vehicle
+        for vid, direction in requests.items():
+            lane = veh.getLaneIndex(vid) + direction
+            if veh.getLaneID(vid).startswith(":") or not 0 <= lane < libsumo.edge.getLaneNumber(
+                veh.getRoadID(vid)
+            ):
+                continue
+            veh.changeLane(vid, lane, LANE_REQUEST_S)
 
     def discard(self, vehicle_id: str) -> None:
         """Take a platoon vehicle out that can no longer be placed on its route."""

@@ -657,6 +657,25 @@ def test_corridor_follows_the_lane_sumo_drives_in_beside_the_route():
     assert ctrl.mode == "route_following" and ctrl.track is None
 
 
+@pytest.mark.parametrize(("pred_y", "lane_change"), [(3.3, 1), (-3.1, -1), (1.0, 0), (0.1, 0)])
+def test_predecessor_in_the_next_lane_asks_for_a_lane_change(pred_y, lane_change):
+    """Where SUMO steers, the follower asks to move to the lane its predecessor is seen
+    in (more than half a lane beside the own one) and stays put otherwise."""
+    params = LaserFollowerParams(on_lost="route_following", corridor_margin_rel=1.2)
+    me = car(0.0, v=8.0)
+    start = car_with_rear(CAR_FRONT + 10.0, 0.0)
+    ctrl = LaserFollower(params)
+    rng = np.random.default_rng(4)
+    cmd = None
+    for k in range(20):  # acquired straight ahead, then it moves over
+        pred = start if k < 10 else car_with_rear(CAR_FRONT + 10.0, pred_y)
+        obs = observe(me, k * 0.1, 0.1, CAR_LASER, CAR_LIMITS, straight_path(), [pred.rect],
+                      rng=rng)  # fmt: skip
+        cmd = ctrl.step(obs)
+    assert cmd is not None and ctrl.mode == "following"
+    assert cmd.lane_change == lane_change
+
+
 @pytest.mark.parametrize("corridor", ["lane", None])
 def test_car_in_the_outer_lane_of_a_curve_is_not_taken_for_a_predecessor(corridor):
     """(a) at the start of a left curve (radius 60 m) a car in the outer lane 20 m on
