@@ -138,6 +138,19 @@ class RoutePath:
         i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
         return self.lane_ids[int(self.lane_index[i])]
 
+    def lane_beside(self, s_m: float, lateral_offset_m: float) -> tuple[str, int] | None:
+        """(edge, lane index) of the lane `lateral_offset_m` (left +) beside the path at
+        `s_m`; None in junctions and lane-change stretches, where the path lies between
+        lanes."""
+        if any(c.begin_s_m <= s_m <= c.end_s_m for c in self.lane_changes):
+            return None
+        lane = self.lane_at(s_m)
+        if lane.startswith(":"):
+            return None
+        edge, index = lane.rsplit("_", 1)
+        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.lane_width_m) - 1)
+        return edge, int(index) + round(lateral_offset_m / float(self.lane_width_m[i]))
+
     def project(
         self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0
     ) -> PathPoint:

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from platoon_sumo.path import RoutePath
+from platoon_sumo.path import LaneChange, RoutePath
 
 
 def circle_path(radius_m: float, spacing_m: float = 0.05) -> RoutePath:
@@ -64,3 +64,22 @@ def test_curvature_of_a_circle_is_one_over_radius():
     kappa = path.curvature_1pm(smoothing_m=1.0)
     inner = kappa[50:-50]
     assert np.allclose(inner, 1 / 25.0, rtol=5e-3)
+
+
+def test_lane_beside_counts_lanes_by_offset_on_the_same_edge():
+    # edge a (lane 1) for 100 m, a junction lane for 10 m, edge b (lane 0) for 100 m;
+    # the route changes from lane 1 to lane 0 of b between 150 and 180 m
+    a = np.array([[0.0, 0.0], [100.0, 0.0]])
+    junction = np.array([[100.0, 0.0], [110.0, 0.0]])
+    b = np.array([[110.0, 0.0], [210.0, 0.0]])
+    change = LaneChange(150.0, 180.0, ("b_0",))
+    path = RoutePath.from_pieces(
+        [a, junction, b], ["a_1", ":j_0_0", "b_0"], [13.9] * 3, [3.2] * 3, 0.5, [change]
+    )
+    assert path.lane_beside(50.0, 0.0) == ("a", 1)
+    assert path.lane_beside(50.0, 3.1) == ("a", 2)  # one lane to the left
+    assert path.lane_beside(50.0, -3.3) == ("a", 0)
+    assert path.lane_beside(50.0, 1.0) == ("a", 1)  # still the same lane
+    assert path.lane_beside(105.0, 0.0) is None  # inside the junction
+    assert path.lane_beside(160.0, 0.0) is None  # the path is between lanes
+    assert path.lane_beside(200.0, 3.2) == ("b", 1)

@@ -12,8 +12,10 @@ Five network files are built:
   :func:`straight_sources` writes from the constants below.
 * ``networks/drt_city/drt_city.net.xml.gz``: the city district shipped with eclipse-sumo
   (``tools/game/DRT/osm.net.xml``) re-converted with wider vehicles assumed for the waiting
-  places inside junctions (see :data:`DRT_CITY_VEHICLE_WIDTH_M`) and larger radii where
-  opposite left turns cross (:data:`DRT_CITY_JUNCTION_RADII_M`); gzip without a
+  places inside junctions (see :data:`DRT_CITY_VEHICLE_WIDTH_M`), larger radii where
+  opposite left turns cross (:data:`DRT_CITY_JUNCTION_RADII_M`), U-turns only where
+  they are the only way on, and one movement SUMO's junction logic gets wrong
+  (:func:`write_connection_deletions`); gzip without a
   timestamp, so the bytes are reproducible.
 * ``networks/a10kw/fixed_time_signals.add.xml``: fixed-time programs for the two traffic
   lights of the A10 interchange shipped with eclipse-sumo (``tools/game/A10KW``), whose
@@ -47,6 +49,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import sumo
+import sumolib
 from shapely.geometry import LinearRing, Polygon
 from shapely.geometry.polygon import orient
 
@@ -75,6 +78,12 @@ DRT_CITY_VEHICLE_WIDTH_M = 3.0
 #: left turns": opposite left turns count as conflict-free in SUMO's junction model, yet
 #: there their paths cross and cars meet in the middle. A larger radius (netconvert's
 #: advice) separates them; each value is the smallest tried that silences the warning.
+#: Movements of the DRT district taken out (from edge, to edge): in the joined junction
+#: cluster_1560223635_1560223686_1787023433_294169342 this right turn runs head-on over
+#: the left turn from 142575658#2 into 143308590#0 (their internal lanes 0.5 m apart),
+#: and SUMO's junction logic sees no conflict between them.
+DRT_CITY_DELETED_MOVEMENTS = (("143308587#0", "-142575658#2"),)
+
 DRT_CITY_JUNCTION_RADII_M = {
     "cluster_1293996765_1293996771_1298595250_1560223550": 8.0,
     "cluster_1560592914_294165589_5072357893": 8.0,
@@ -288,6 +297,30 @@ def build_straight(out_dir: Path) -> None:
     normalise_header(output)
 
 
+def write_connection_deletions(
+    net_file: Path, output: Path, movements: Sequence[tuple[str, str]] = ()
+) -> None:
+    """A connection patch deleting `movements` and every U-turn except where it is the
+    only way on.
+
+    netconvert's ``--no-turnarounds`` only acts when it computes connections, not on the
+    ones a loaded network carries. A vehicle making a U-turn inside a junction waits
+    there for the opposite stream with its nose in that stream's path."""
+    net = sumolib.net.readNet(str(net_file))
+    lines = ["<connections>"]
+    lines += [f"    <delete from={quoteattr(a)} to={quoteattr(b)}/>" for a, b in movements]
+    for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
+        outgoing = edge.getOutgoing()
+        for target, connections in sorted(outgoing.items(), key=lambda kv: kv[0].getID()):
+            if len(outgoing) < 2 or not any(c.getDirection() == "t" for c in connections):
+                continue
+            lines.append(
+                f"    <delete from={quoteattr(edge.getID())} to={quoteattr(target.getID())}/>"
+            )
+    lines.append("</connections>")
+    output.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
 def build_drt_city(out_dir: Path) -> None:
     """Re-convert the shipped DRT district with the wider junction waiting places."""
     output = out_dir / DRT_CITY_NET
@@ -304,11 +337,14 @@ def build_drt_city(out_dir: Path) -> None:
             + "</nodes>\n",
             encoding="utf-8",
         )
+        deletions = Path(tmp) / "deletions.con.xml"
+        write_connection_deletions(DRT_CITY_SOURCE, deletions, DRT_CITY_DELETED_MOVEMENTS)
         run_sumo_tool(
             [
                 sumo_tool("netconvert"),
                 "--sumo-net-file", str(DRT_CITY_SOURCE),
                 "--node-files", str(radii),
+                "--connection-files", str(deletions),
                 "--internal-junctions.vehicle-width", repr(DRT_CITY_VEHICLE_WIDTH_M),
                 "--output-file", str(plain),
             ]

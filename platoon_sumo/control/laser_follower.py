@@ -78,7 +78,7 @@ from platoon_sumo.control.perception import (
     detect_rears,
 )
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
-from platoon_sumo.path import FloatArray, RoutePath
+from platoon_sumo.path import FloatArray, PathPoint, RoutePath
 from platoon_sumo.sensors.laser import LaserScan
 
 _POLICIES = ("constant_distance", "constant_time_gap")
@@ -327,11 +327,8 @@ class LaserFollower:
         window = max(4.0 * obs.length_m, 2.0 * self._lookahead(obs))
         self._route_s = obs.path.project(obs.x_m, obs.y_m, self._route_s, window).s_m
 
-    def _beside_own_lane(
-        self, obs: Observation, x_m: float, y_m: float
-    ) -> tuple[float, float] | None:
-        """(offset from the own lane's centre-line, lane width there) of a world point
-        ahead on the own route [m]; None when it is not ahead."""
+    def _ahead_on_route(self, obs: Observation, x_m: float, y_m: float) -> PathPoint | None:
+        """A world point projected on the own route, or None when it is not ahead."""
         if self._route_s is None:
             return None
         path, s0 = obs.path, self._route_s
@@ -340,31 +337,35 @@ class LaserFollower:
             math.hypot(x_m - obs.x_m, y_m - obs.y_m) + _CORRIDOR_AHEAD_LENGTHS * obs.length_m
         )
         at = path.project(x_m, y_m, s0 + reach, reach)
-        if at.s_m <= s0:
-            return None
-        i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
-        return at.lateral_offset_m - obs.lane_offset_m, float(path.lane_width_m[i])
+        return at if at.s_m > s0 else None
 
     def _in_corridor(self, obs: Observation, x_m: float, y_m: float) -> bool:
-        """Does the world point lie ahead on the own route, within the corridor?"""
+        """Does the world point lie ahead on the own route, within the corridor (centred on
+        the own lane)?"""
         half_width = self.params.corridor_half_width_m
         if half_width is None or self._route_s is None:
             return True
-        beside = self._beside_own_lane(obs, x_m, y_m)
-        if beside is None:
+        at = self._ahead_on_route(obs, x_m, y_m)
+        if at is None:
             return False
-        offset, lane = beside
         if half_width == "lane":
-            half_width = (0.5 + self.params.corridor_margin_rel) * lane
-        return abs(offset) <= half_width
+            path = obs.path
+            i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
+            half_width = (0.5 + self.params.corridor_margin_rel) * float(path.lane_width_m[i])
+        return abs(at.lateral_offset_m - obs.lane_offset_m) <= half_width
 
     def _lane_request(self, obs: Observation, x_m: float, y_m: float) -> int:
-        """Where SUMO steers (lane actuation): +1 / -1 to follow a predecessor the laser
-        sees more than half a lane to the left / right of the own lane, else 0."""
-        beside = self._beside_own_lane(obs, x_m, y_m) if self._in_view else None
-        if beside is None or abs(beside[0]) <= 0.5 * beside[1]:
+        """Where SUMO steers (lane actuation): +1 / -1 towards the lane of the same road in
+        which the laser sees the predecessor, else 0 (also where either is in a junction
+        or the route's own lane change: lanes are compared by the map, not by offsets)."""
+        at = self._ahead_on_route(obs, x_m, y_m) if self._in_view else None
+        if at is None or self._route_s is None:
             return 0
-        return 1 if beside[0] > 0.0 else -1
+        own = obs.path.lane_beside(self._route_s, obs.lane_offset_m)
+        theirs = obs.path.lane_beside(at.s_m, at.lateral_offset_m)
+        if own is None or theirs is None or own[0] != theirs[0] or own[1] == theirs[1]:
+            return 0
+        return 1 if theirs[1] > own[1] else -1
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""
@@ -552,13 +553,19 @@ class LaserFollower:
 
     def _guarded(self, obs: Observation, cmd: Command) -> Command:
         """The fallback's command with its speed capped by the laser clearance on its arc."""
-        p = self.params
-        v = max(obs.speed_mps, 0.1)
-        clearance = self._arc_clearance(obs, cmd.yaw_rate_radps / v)
+        p, lim = self.params, obs.limits
+        # the arc the fallback steers: its yaw rate over the speed it will reach (dividing
+        # by a speed near zero would bend the arc into the cars beside a standing vehicle)
+        v_next = min(
+            max(cmd.speed_mps, obs.speed_mps - lim.max_decel_mps2 * obs.dt_s),
+            obs.speed_mps + lim.max_accel_mps2 * obs.dt_s,
+        )
+        curvature = cmd.yaw_rate_radps / v_next if v_next > 1e-3 else 0.0
+        clearance = self._arc_clearance(obs, curvature)
         safe = _krauss_safe_speed(
             clearance - p.standstill_gap_m, 0.0, p.comfort_decel_mps2, p.reaction_time_s
         )
-        return Command(speed_mps=min(cmd.speed_mps, safe), yaw_rate_radps=cmd.yaw_rate_radps)
+        return replace(cmd, speed_mps=min(cmd.speed_mps, safe))
 
     def _arc_clearance(self, obs: Observation, curvature: float) -> float:
         """Free distance from the front bumper along the arc of the given curvature."""

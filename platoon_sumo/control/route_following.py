@@ -114,7 +114,24 @@ class RouteFollowing:
         dist = math.hypot(dx, dy)
         alpha = math.atan2(dy, dx) - obs.yaw_rad
         curvature = 2.0 * math.sin(alpha) / dist if dist > 1e-6 else 0.0
-        return Command(speed_mps=speed, yaw_rate_radps=max(next_speed, 0.0) * curvature)
+        return Command(
+            speed_mps=speed,
+            yaw_rate_radps=max(next_speed, 0.0) * curvature,
+            lane_change=self._lane_request(obs),
+        )
+
+    def _lane_request(self, obs: Observation) -> int:
+        """Where SUMO steers (lane actuation): +1 / -1 towards the lane the route path
+        plans on this edge, early (SUMO changes lanes only once it must, and at a queue
+        it may not get in any more); 0 on the planned lane, in junctions and during the
+        path's own lane changes."""
+        if not obs.lane_offset_m:
+            return 0
+        own = obs.path.lane_beside(self._s_m, obs.lane_offset_m)
+        planned = obs.path.lane_beside(self._s_m, 0.0)
+        if own is None or planned is None or own[0] != planned[0] or own[1] == planned[1]:
+            return 0
+        return 1 if planned[1] > own[1] else -1
 
     def _profile_speed(self, obs: Observation) -> float:
         """Highest speed from which every speed limit ahead is reachable at comfort decel."""

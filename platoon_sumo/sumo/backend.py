@@ -26,9 +26,6 @@ from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapsh
 #: changes (SUMO's default is 1621).
 LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
 
-#: How long a lane request holds [s]: re-issued every step while the controller asks.
-LANE_REQUEST_S = 0.5
-
 
 def sumo_binary(name: str = "sumo") -> str:
     """Path of a SUMO executable shipped in the eclipse-sumo wheel (no SUMO_HOME needed)."""
@@ -310,7 +307,9 @@ class SumoBackend:
                 veh.getRoadID(vid)
             ):
                 continue
-            veh.changeLane(vid, lane, LANE_REQUEST_S)
+            # for one step: re-issued while the controller asks, never carried onto the
+            # next edge (where that index may lead elsewhere)
+            veh.changeLane(vid, lane, self.options.step_s)
 
     def discard(self, vehicle_id: str) -> None:
         """Take a platoon vehicle out that can no longer be placed on its route."""

@@ -139,3 +139,17 @@ def test_a_car_that_braked_for_yellow_does_not_creep_over_the_line():
         assert limit == 0.0
     # Fast and 0.4 m before the line on yellow: too late to stop, clear the junction.
     assert signal_speed_limit(SignalAhead("t", 0, "y", 0.4), 8.0, 0.1, 2.5, 4.0, 0.5) == math.inf
+
+
+@pytest.mark.parametrize(("lane_offset_m", "expected"), [(3.2, -1), (-3.2, 1), (0.0, 0)])
+def test_lane_actuated_car_asks_for_the_lane_its_route_plans(lane_offset_m, expected):
+    """Where SUMO steers, a car a lane beside its route's planned lane asks to move back
+    to it (SUMO would change only once it must, maybe too late at a queue)."""
+    east = np.column_stack([np.linspace(0, 200, 401), np.zeros(401)])
+    path = RoutePath.from_pieces([east], ["e_1"], [13.89], [3.2], 0.5)
+    obs = Observation(
+        time_s=0.0, dt_s=DT, vehicle_id="car", role="leader", x_m=50.0, y_m=lane_offset_m,
+        yaw_rad=0.0, speed_mps=10.0, front_offset_m=FRONT_OFFSET_M, length_m=4.5,
+        width_m=1.8, limits=LIMITS, path=path, lane_offset_m=lane_offset_m,
+    )  # fmt: skip
+    assert RouteFollowing().step(obs).lane_change == expected
