@@ -66,7 +66,7 @@ def motorway(tmp_path_factory: pytest.TempPathFactory):
     return _run(tmp_path_factory, "motorway_platoons", end_s=MOTORWAY_END_S)
 
 
-def _check_acceptance(summary: dict) -> None:
+def _check_acceptance(summary: dict, departing_after_end: set[str]) -> None:
     """The issue's acceptance on the platoons of the shortened run: three whole platoons
     of four, every member arrived, no contact, teleport or red light, 500+ humans."""
     assert summary["status"] == "complete"
@@ -74,7 +74,9 @@ def _check_acceptance(summary: dict) -> None:
     assert summary["sumo_collisions_with_platoons"] == 0
     assert summary["teleports"] == 0
     assert summary["red_light_violations"] == 0, summary["red_light_events"]
-    assert summary["removed_off_route"] == [] and summary["platoons_not_inserted"] == []
+    assert summary["removed_off_route"] == []
+    # only the later three platoons, due after the shortened run's end, stay out
+    assert set(summary["platoons_not_inserted"]) == departing_after_end
     pv = summary["platoon_vehicles"]
     assert pv["departed"] == 12  # the three platoons due in the shortened run, whole
     assert pv["arrived"] == pv["departed"]
@@ -88,7 +90,7 @@ def _check_acceptance(summary: dict) -> None:
 
 def test_city_platoons_cross_a_real_district(city):
     summary, _, counter = city
-    _check_acceptance(summary)
+    _check_acceptance(summary, {"west2", "centre2", "east2"})
     assert counter.max_sumo_vehicles >= 100
 
 
@@ -105,7 +107,7 @@ def test_city_platoons_meet_signals_and_unsignalised_junctions(city):
 
 def test_motorway_platoons_in_the_real_a10_demand(motorway):
     summary, traj, counter = motorway
-    _check_acceptance(summary)
+    _check_acceptance(summary, {"southbound2", "northbound2", "interchange2"})
     assert counter.max_sumo_vehicles >= 300
     assert traj is not None
     # the southbound platoon passed the exit diverge (264308375) and the on-ramp merge
