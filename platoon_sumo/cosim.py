@@ -33,7 +33,7 @@ from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan, sensor_poses
 from platoon_sumo.sensors.raycast import scan_many
 from platoon_sumo.sumo.backend import SumoBackend
-from platoon_sumo.supervisor import EMERGENCY, supervise
+from platoon_sumo.supervisor import EMERGENCY, SUMO_SAFETY, supervise
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
 from platoon_sumo.world import (
     LaneChangeAhead,
@@ -467,10 +467,6 @@ class CoSimulation:
             del self.active[vid]
             self.counters.removed_off_route.append(RemovedVehicle(world.time_s, vid, reason))
 
-    #: Supervisor state of a SUMO-driven vehicle whose safety layer held it below the
-    #: executed command (its safe speed, a light, right of way, a lane change).
-    SUMO_SAFETY = "sumo"
-
     def _read_sumo_driven(self, world: WorldSnapshot) -> None:
         """Lane actuation: SUMO moved the vehicle; its pose and speed become the state.
 
@@ -500,7 +496,7 @@ class CoSimulation:
                 self.counters.sumo_speed_caps += 1
             v.sumo_capped = capped
             if capped and not v.supervisor_state:
-                v.supervisor_state = self.SUMO_SAFETY
+                v.supervisor_state = SUMO_SAFETY
 
     # ------------------------------------------------------------------ bookkeeping
 

@@ -151,6 +151,18 @@ class RoutePath:
         i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.lane_width_m) - 1)
         return edge, int(index) + round(lateral_offset_m / float(self.lane_width_m[i]))
 
+    def lane_step(
+        self, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
+    ) -> int:
+        """+1 / -1 when the target point lies in the lane to the left / right (or further)
+        of the point's lane on the same edge; 0 otherwise, and where either lies in a
+        junction or a lane-change stretch (lanes compared by the map, not by offsets)."""
+        own = self.lane_beside(s_m, offset_m)
+        target = self.lane_beside(target_s_m, target_offset_m)
+        if own is None or target is None or own[0] != target[0] or own[1] == target[1]:
+            return 0
+        return 1 if target[1] > own[1] else -1
+
     def project(
         self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0
     ) -> PathPoint:

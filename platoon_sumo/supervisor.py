@@ -46,6 +46,9 @@ class SupervisorConfig:
 
 #: Supervisor states recorded per step ("" when the controller's command passed unchanged).
 SIGNAL, YIELD, MERGE, EMERGENCY = "signal", "yield", "merge", "emergency"
+#: Recorded by the loop, not set here: with lane actuation SUMO's own safety layer held
+#: the vehicle below the command the supervisor let through.
+SUMO_SAFETY = "sumo"
 
 
 def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:

@@ -216,22 +216,26 @@ def format_shape(ring: LinearRing) -> str:
     return " ".join(f"{x:.2f},{y:.2f}" for x, y in ring.coords)
 
 
+def write_xml(path: Path, root: str, body: Sequence[str], header: Sequence[str] = ()) -> None:
+    """Write an XML file line by line: `header` lines, then `body` inside `<root>`."""
+    lines = [*header, f"<{root}>", *body, f"</{root}>"]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
 def write_walls(path: Path, walls: Sequence[tuple[str, LinearRing]]) -> None:
     """Write the walls as a SUMO additional file of unfilled ``<poly type="wall">`` outlines."""
-    lines = [
+    header = [
         '<?xml version="1.0" encoding="UTF-8"?>',
         FIXED_HEADER,
         f"<!-- Walls {WALL_MARGIN_M:.2f} m outside the road area of paper_world.net.xml. Each poly"
         " is a closed polyline (last point = first point); a laser sees its segments. -->",
-        "<additional>",
     ]
-    for wall_id, ring in walls:
-        lines.append(
-            f'    <poly id={quoteattr(wall_id)} type="wall" color="100,100,100" fill="0"'
-            f' lineWidth="0.05" layer="1" shape="{format_shape(ring)}"/>'
-        )
-    lines.append("</additional>")
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    body = [
+        f'    <poly id={quoteattr(wall_id)} type="wall" color="100,100,100" fill="0"'
+        f' lineWidth="0.05" layer="1" shape="{format_shape(ring)}"/>'
+        for wall_id, ring in walls
+    ]
+    write_xml(path, "additional", body, header)
 
 
 def build_urban_grid(out_dir: Path) -> None:
@@ -307,18 +311,14 @@ def write_connection_deletions(
     ones a loaded network carries. A vehicle making a U-turn inside a junction waits
     there for the opposite stream with its nose in that stream's path."""
     net = sumolib.net.readNet(str(net_file))
-    lines = ["<connections>"]
-    lines += [f"    <delete from={quoteattr(a)} to={quoteattr(b)}/>" for a, b in movements]
+    deleted = list(movements)
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         outgoing = edge.getOutgoing()
         for target, connections in sorted(outgoing.items(), key=lambda kv: kv[0].getID()):
-            if len(outgoing) < 2 or not any(c.getDirection() == "t" for c in connections):
-                continue
-            lines.append(
-                f"    <delete from={quoteattr(edge.getID())} to={quoteattr(target.getID())}/>"
-            )
-    lines.append("</connections>")
-    output.write_text("\n".join(lines) + "\n", encoding="utf-8")
+            if len(outgoing) > 1 and any(c.getDirection() == "t" for c in connections):
+                deleted.append((edge.getID(), target.getID()))
+    body = [f"    <delete from={quoteattr(a)} to={quoteattr(b)}/>" for a, b in deleted]
+    write_xml(output, "connections", body)
 
 
 def build_drt_city(out_dir: Path) -> None:
@@ -328,14 +328,13 @@ def build_drt_city(out_dir: Path) -> None:
     with tempfile.TemporaryDirectory(prefix="platoon_drt_") as tmp:
         plain = Path(tmp) / "drt_city.net.xml"
         radii = Path(tmp) / "radii.nod.xml"
-        radii.write_text(
-            "<nodes>\n"
-            + "".join(
-                f'    <node id={quoteattr(node)} radius="{radius:g}"/>\n'
+        write_xml(
+            radii,
+            "nodes",
+            [
+                f'    <node id={quoteattr(node)} radius="{radius:g}"/>'
                 for node, radius in DRT_CITY_JUNCTION_RADII_M.items()
-            )
-            + "</nodes>\n",
-            encoding="utf-8",
+            ],
         )
         deletions = Path(tmp) / "deletions.con.xml"
         write_connection_deletions(DRT_CITY_SOURCE, deletions, DRT_CITY_DELETED_MOVEMENTS)
@@ -362,21 +361,20 @@ def build_a10kw_signals(out_dir: Path) -> None:
     A10 interchange's lights: the shipped phases with every green at A10KW_GREEN_S."""
     output = out_dir / A10KW_SIGNALS
     output.parent.mkdir(parents=True, exist_ok=True)
-    lines = [FIXED_HEADER, "<additional>"]
+    body = []
     for _, element in ET.iterparse(A10KW_SOURCE):
         if element.tag != "tlLogic":
             continue
         tls_id = quoteattr(element.get("id", ""))
-        lines.append(f'    <tlLogic id={tls_id} type="static" programID="fixed_time" offset="0">')
+        body.append(f'    <tlLogic id={tls_id} type="static" programID="fixed_time" offset="0">')
         for phase in element.iter("phase"):
             state = phase.get("state", "")
             green = "G" in state or "g" in state
             duration = A10KW_GREEN_S if green else float(phase.get("duration", "0"))
-            lines.append(f'        <phase duration="{duration:g}" state="{state}"/>')
-        lines.append("    </tlLogic>")
+            body.append(f'        <phase duration="{duration:g}" state="{state}"/>')
+        body.append("    </tlLogic>")
         element.clear()
-    lines.append("</additional>")
-    output.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_xml(output, "additional", body, [FIXED_HEADER])
 
 
 def build_all(out_dir: Path) -> None:

@@ -361,11 +361,7 @@ class LaserFollower:
         at = self._ahead_on_route(obs, x_m, y_m) if self._in_view else None
         if at is None or self._route_s is None:
             return 0
-        own = obs.path.lane_beside(self._route_s, obs.lane_offset_m)
-        theirs = obs.path.lane_beside(at.s_m, at.lateral_offset_m)
-        if own is None or theirs is None or own[0] != theirs[0] or own[1] == theirs[1]:
-            return 0
-        return 1 if theirs[1] > own[1] else -1
+        return obs.path.lane_step(self._route_s, obs.lane_offset_m, at.s_m, at.lateral_offset_m)
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""

@@ -127,11 +127,7 @@ class RouteFollowing:
         path's own lane changes."""
         if not obs.lane_offset_m:
             return 0
-        own = obs.path.lane_beside(self._s_m, obs.lane_offset_m)
-        planned = obs.path.lane_beside(self._s_m, 0.0)
-        if own is None or planned is None or own[0] != planned[0] or own[1] == planned[1]:
-            return 0
-        return 1 if planned[1] > own[1] else -1
+        return obs.path.lane_step(self._s_m, obs.lane_offset_m, self._s_m, 0.0)
 
     def _profile_speed(self, obs: Observation) -> float:
         """Highest speed from which every speed limit ahead is reachable at comfort decel."""
