@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_doc:
         from platoon_sumo.sumo.backend import sumo_version
 
-        write_doc(f"Produced by `{command.strip()}` (SUMO {sumo_version()}).\n\n{text}")
+        write_doc(f"Produced by `{command.strip()}` ({sumo_version()}).\n\n{text}")
     return 0 if all("error" not in r for r in results) else 1
 
 
