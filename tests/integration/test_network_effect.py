@@ -45,3 +45,20 @@ def test_human_travel_times_with_and_without_the_platoons(write_scenario, tmp_pa
     # the slow platoon costs the humans behind it time
     assert a["human_mean_time_loss_s"] > b["human_mean_time_loss_s"] + 2.0
     assert a["human_mean_travel_time_s"] > b["human_mean_travel_time_s"]
+
+
+def test_demand_scale_thins_the_human_traffic(write_scenario, tmp_path):
+    def humans(scale: float) -> int:
+        scenario = {
+            "simulation": {"step_s": 0.5, "end_s": 200.0, "seed": 5},
+            "network": {"net_file": str(URBAN_GRID_NET)},
+            "traffic": {"scale": scale, "flows": [{"from_edge": "left1A1", "to_edge": "C1right1",
+                                                   "vehs_per_hour": 720, "end_s": 100.0}]},
+        }  # fmt: skip
+        plan = load_plan(write_scenario(scenario, f"scale_{scale}.yaml"))
+        out = run(plan, tmp_path / f"scale_{scale}").directory
+        return int(json.loads((out / "summary.json").read_text())["traffic"]["human_trips"])
+
+    full, half = humans(1.0), humans(0.5)
+    assert full == 20  # 720 veh/h for 100 s
+    assert half == full // 2
