@@ -81,9 +81,16 @@ def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("Platoon paths over the network (front bumpers; o start, \u25a0 end)")
-    ax.legend(loc="best", fontsize=8, ncol=1 + len(traj["vehicle_id"].unique()) // 8)
+    vehicles = len(traj["vehicle_id"].unique())
+    if vehicles <= 8:
+        ax.legend(loc="best", fontsize=8)
+    else:  # below the map, where it hides no path
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
+                  ncol=min(6, 1 + vehicles // 6))  # fmt: skip
     ax.grid(True, alpha=0.3)
-    return _save(fig, path)
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return path
 
 
 def spacing_and_speed(traj: pd.DataFrame, platoon_id: str, path: Path) -> Path:
