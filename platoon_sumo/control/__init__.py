@@ -4,6 +4,13 @@ from platoon_sumo.control import laser_follower as _laser_follower  # noqa: F401
 from platoon_sumo.control import paper as _paper  # noqa: F401 (registers)
 from platoon_sumo.control import route_following as _route_following  # noqa: F401 (registers)
 from platoon_sumo.control import speed_profile as _speed_profile  # noqa: F401 (registers)
-from platoon_sumo.control.base import CONTROLLERS, Command, Controller, Observation
+from platoon_sumo.control.base import (
+    CONTROLLERS,
+    Command,
+    Controller,
+    GapPolicy,
+    Observation,
+    Telemetry,
+)
 
-__all__ = ["CONTROLLERS", "Command", "Controller", "Observation"]
+__all__ = ["CONTROLLERS", "Command", "Controller", "GapPolicy", "Observation", "Telemetry"]

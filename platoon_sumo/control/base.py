@@ -53,6 +53,30 @@ class Observation:
 
 
 @dataclass(frozen=True)
+class GapPolicy:
+    """A follower's spacing policy as data: desired bumper-to-rear gap
+    `standstill_m + time_gap_s * speed` (constant distance: `time_gap_s = 0`)."""
+
+    standstill_m: float
+    time_gap_s: float = 0.0
+
+    def desired_m(self, speed_mps: float) -> float:
+        return self.standstill_m + self.time_gap_s * max(speed_mps, 0.0)
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """What a controller reports about its decision, for the trajectory table (never read
+    back by the loop): its mode, the gap its perception measured when it chose the command
+    (own front bumper at the start of the step to the predecessor's rear), and its
+    spacing policy."""
+
+    mode: str = ""
+    measured_gap_m: float | None = None
+    gap_policy: GapPolicy | None = None
+
+
+@dataclass(frozen=True)
 class Command:
     """Speed and heading command. `heading_rad`, when given, overrides `yaw_rate_radps`."""
 
@@ -63,6 +87,8 @@ class Command:
     """With `actuation: lane` (where SUMO steers): ask SUMO to move to the next lane to
     the left (+1) or right (-1); SUMO makes the change when its gap is safe. Planar
     actuation steers with the yaw rate / heading instead and ignores this."""
+    telemetry: Telemetry | None = None
+    """Optional report for the trajectory table (mode, measured gap, spacing policy)."""
 
 
 @runtime_checkable
