@@ -19,7 +19,7 @@ import platoon_sumo
 from platoon_sumo.errors import PlatoonSumoError, ScenarioError
 
 if TYPE_CHECKING:
-    from platoon_sumo.cosim import CoSimulation, StepRecord
+    from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
     from platoon_sumo.sensors.laser import LaserScan
 
 DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
@@ -46,14 +46,20 @@ class Progress:
         self._start = 0.0
         self._last = 0.0
         self._last_decile = -1
+        self._begin_s = self._end_s = 0.0
+        self._collisions = 0
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         self._start = self._last = time.perf_counter()
+        self._begin_s, self._end_s = run.begin_s, run.end_s
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
+        from platoon_sumo.events import EventKind
+
+        self._collisions += len(record.of_kind(EventKind.COLLISION, EventKind.WALL_CONTACT))
         now = time.perf_counter()
-        begin = sim.plan.scenario.simulation.begin_s
-        fraction = (record.time_s - begin) / max(sim.end_s - begin, 1e-9)
+        begin = self._begin_s
+        fraction = (record.time_s - begin) / max(self._end_s - begin, 1e-9)
         decile = int(fraction * 10)
         if self.tty and now - self._last < self.interval_s:
             return
@@ -62,14 +68,14 @@ class Progress:
         self._last, self._last_decile = now, decile
         rtf = (record.time_s - begin) / max(now - self._start, 1e-9)
         line = (
-            f"t = {record.time_s:8.1f} / {sim.end_s:.0f} s ({fraction:4.0%})  "
-            f"{rtf:7.1f}x real time  {len(record.world):5d} vehicles  "
-            f"{len(record.vehicles):3d} platoon  {len(sim.counters.collisions)} collisions"
+            f"t = {record.time_s:8.1f} / {self._end_s:.0f} s ({fraction:4.0%})  "
+            f"{rtf:7.1f}x real time  {record.sumo_vehicles:5d} vehicles  "
+            f"{len(record.vehicles):3d} platoon  {self._collisions} collisions"
         )
         self.stream.write(("\r" + line) if self.tty else line + "\n")
         self.stream.flush()
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         if self.tty:
             self.stream.write("\n")
 
@@ -111,20 +117,20 @@ class ScanGrabber:
         self.scan: LaserScan | None = None
         self.rectangles: np.ndarray | None = None
         self.segments: np.ndarray | None = None
-        self._previous: tuple[float, np.ndarray] | None = None
 
-    def on_start(self, sim: CoSimulation) -> None:
-        self.segments = sim.static_segments
+    def on_start(self, run: RunContext) -> None:
+        self.segments = run.static_segments
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
-        previous, self._previous = self._previous, (record.time_s, sim.footprints(record.world))
+    def on_step(self, record: StepRecord) -> None:
+        seen = record.sensed_world
         for v in record.vehicles:
             wanted = self.vehicle_id is None or v.id == self.vehicle_id
-            if wanted and v.scan is not None and previous and previous[0] == v.scan.stamp_s:
-                self.scan, self.rectangles = v.scan, previous[1]
+            scan = v.scan
+            if wanted and scan is not None and seen is not None and seen.time_s == scan.stamp_s:
+                self.scan, self.rectangles = scan, record.sensed_footprints
                 break
 
 

@@ -32,3 +32,8 @@ def did_you_mean(word: str, choices: Iterable[str]) -> str | None:
     """A 'did you mean' hint for a misspelt name, or None when nothing is close."""
     matches = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f"did you mean '{matches[0]}'?" if matches else None
+
+
+class PluginError(PlatoonSumoError):
+    """A plug-in (controller, sensor, actuator) failed during a run: names the plug-in,
+    the vehicle and the simulated time."""

@@ -1,6 +1,6 @@
 """Platoons as ordered members: who follows whom, and what a follower truly sees of it.
 
-These helpers serve metrics and recording, never control: followers find their
+These helpers serve metrics and events, never control: followers find their
 predecessor with their own sensor. A member's predecessor is the nearest member ahead
 in the platoon's order that is still in the network.
 """
@@ -14,9 +14,6 @@ from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
-
-from platoon_sumo.sensors.laser import LaserConfig, LaserScan
-from platoon_sumo.sensors.raycast import cast_rays
 
 
 class Member(Protocol):
@@ -58,21 +55,6 @@ def bumper_gap_m(follower_rect: NDArray[np.float64], leader_rect: NDArray[np.flo
     return math.hypot(lx - fx, ly - fy)
 
 
-def rays_on_target(scan: LaserScan, config: LaserConfig, target: NDArray[np.float64]) -> int:
-    """How many rays of `scan` return from `target` (a rectangle) rather than from anything
-    in front of it.
-
-    The target alone is cast exactly; a ray counts where the scan's reading agrees with
-    that distance (within 4 sigma of the range noise). Dropouts do not count.
-    """
-    alone = cast_rays(
-        (scan.origin_x_m, scan.origin_y_m), scan.heading_rad, config, rectangles=target[None, :]
-    )
-    tolerance = max(4.0 * config.noise_std_m, 1e-6)
-    hit = np.isfinite(alone)
-    return int(np.count_nonzero(np.abs(scan.ranges[hit] - alone[hit]) <= tolerance))
-
-
 @dataclass(frozen=True)
 class PlatoonEvent:
     """A change in a platoon's structure, for the run summary."""
@@ -108,7 +90,6 @@ class LinkMonitor:
     def __init__(self, hold_s: float = 1.0):
         self.hold_s = hold_s
         self._state: dict[str, _LinkState] = {}
-        self.events: list[PlatoonEvent] = []
 
     def observe(
         self,
@@ -135,7 +116,6 @@ class LinkMonitor:
         if intruder_id is not None and intruder_id != s.intruder:
             new.append(PlatoonEvent(time_s, platoon_id, follower_id, "cut_in", intruder_id))
         s.intruder = intruder_id
-        self.events.extend(new)
         return new
 
     def forget(self, follower_id: str) -> None:

@@ -16,10 +16,12 @@ import csv
 import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from platoon_sumo.events import EVENT_COLUMNS, event_row
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord, VehicleRecord
 from platoon_sumo.metrics.kernels import (
     PathTrail,
     jerk_mps3,
@@ -28,10 +30,7 @@ from platoon_sumo.metrics.kernels import (
     time_to_collision_s,
 )
 from platoon_sumo.metrics.stats import RunStats
-
-if TYPE_CHECKING:
-    from platoon_sumo.cosim import CoSimulation, PlatoonVehicle, StepRecord
-    from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.sensors.laser import LaserScan
 
 #: Column name -> type (f float, i integer, s text); the table's columns in order.
 COLUMN_TYPES: dict[str, str] = {
@@ -94,7 +93,7 @@ class TableWriter:
             self._parquet = None
 
 
-class TrajectoryRecorder:
+class TrajectoryRecorder(StepHook):
     """Appends one row per platoon vehicle per step; flushes every `chunk_rows` rows.
 
     `stats` (if given) receives every step's rows and the step's collisions and
@@ -117,24 +116,22 @@ class TrajectoryRecorder:
         self.rows_written = 0
         self._accel: dict[str, float] = {}
         self._trails: dict[str, PathTrail] = {}
-        self._bumper: dict[str, tuple[float, float]] = {}
+        self._dt_s = 0.0
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
+        self._dt_s = run.dt_s
         if self.writer is not None:
             self.writer.open()
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         by_id = {v.id: v for v in record.vehicles}
         for v in record.vehicles:  # every trail first, then measure against them
-            fx, fy = v.front_bumper()
             trail = self._trails.get(v.id)
             if trail is None:
-                spacing = TRAIL_SPACING_LENGTHS * v.platoon.config.vehicle.length_m
+                spacing = TRAIL_SPACING_LENGTHS * v.length_m
                 trail = self._trails[v.id] = PathTrail(spacing, TRAIL_MAX_POINTS)
-            trail.append(fx, fy)
-        rows = [self._row(v, record, by_id, sim.dt_s) for v in record.vehicles]
-        self._bumper = {v.id: (row["x_m"], row["y_m"]) for v, row in zip(
-            record.vehicles, rows, strict=True)}  # fmt: skip
+            trail.append(v.front_x_m, v.front_y_m)
+        rows = [self._row(v, record, by_id) for v in record.vehicles]
         followed = {v.predecessor_id for v in record.vehicles}
         for vid, trail in self._trails.items():
             if vid not in followed:
@@ -142,62 +139,54 @@ class TrajectoryRecorder:
         for gone in set(self._trails) - set(by_id):  # arrived: forget (bounded memory)
             del self._trails[gone]
             self._accel.pop(gone, None)
-            self._bumper.pop(gone, None)
         if self.stats is not None:
             self.stats.add_step(record.time_s, rows)
-            self.stats.add_events(
-                [(c.vehicle_a, c.vehicle_b) for c in record.new_collisions],
-                [v.vehicle_id for v in record.new_violations],
-            )
+            self.stats.add_events(record.events)
         if self.writer is not None:
             self._rows.extend(tuple(row[c] for c in TRAJECTORY_COLUMNS) for row in rows)
             if len(self._rows) >= self.chunk_rows:
                 self.flush()
 
     def _row(
-        self,
-        v: PlatoonVehicle,
-        record: StepRecord,
-        by_id: dict[str, PlatoonVehicle],
-        dt_s: float,
+        self, v: VehicleRecord, record: StepRecord, by_id: dict[str, VehicleRecord]
     ) -> dict[str, Any]:
-        world = record.world
-        fx, fy = v.front_bumper()
-        i = world.index.get(v.id)
+        i = record.world.index.get(v.id)
         signal, ahead = v.signal, v.vehicle_ahead
-        speed = float(v.state.speed_mps[0])
+        speed = v.speed_mps
         pred = by_id.get(v.predecessor_id) if v.predecessor_id else None
-        pred_speed = float(pred.state.speed_mps[0]) if pred is not None else None
+        pred_speed = pred.speed_mps if pred is not None else None
         gap = v.gap_to_predecessor_m
-        desired = desired_gap(v)
-        jerk = jerk_mps3(v.accel_mps2, self._accel.get(v.id), dt_s)
+        telemetry = v.telemetry
+        policy = telemetry.gap_policy if telemetry is not None else None
+        desired = policy.desired_m(speed) if policy is not None and v.predecessor_id else None
+        measured = telemetry.measured_gap_m if telemetry is not None else None
+        jerk = jerk_mps3(v.accel_mps2, self._accel.get(v.id), self._dt_s)
         self._accel[v.id] = v.accel_mps2
         trail = self._trails.get(v.predecessor_id) if v.predecessor_id else None
         in_view = None
         if v.predecessor_id is not None and v.predecessor_rays is not None:
             in_view = int(v.predecessor_rays > 0)
         cmd, executed = v.command, v.executed
-        lane_width = v.path.lane_width_m[
-            min(int(v.route_s_m // v.path.spacing_m), len(v.path.lane_width_m) - 1)
-        ]
+        fx, fy = v.front_x_m, v.front_y_m
         return {
             "time_s": round(record.time_s, 6), "vehicle_id": v.id,
-            "platoon_id": v.plan.platoon_id, "member_index": v.plan.index, "role": v.plan.role,
-            "x_m": fx, "y_m": fy, "yaw_rad": float(v.state.yaw_rad[0]), "speed_mps": speed,
+            "platoon_id": v.platoon_id, "member_index": v.index, "role": v.role,
+            "x_m": fx, "y_m": fy, "yaw_rad": v.yaw_rad, "speed_mps": speed,
             "accel_mps2": v.accel_mps2, "jerk_mps3": jerk,
             "cmd_speed_mps": _finite(cmd.speed_mps), "cmd_yaw_rate_radps": cmd.yaw_rate_radps,
             "cmd_heading_rad": cmd.heading_rad,
             "executed_speed_mps": _finite(executed.speed_mps),
             "route_s_m": v.route_s_m, "lateral_offset_m": v.lateral_offset_m,
-            "lane_width_m": float(lane_width),
-            "lane_id": world.lane_ids[i] if i is not None else None,
+            "lane_width_m": v.lane_width_m,
+            "lane_id": record.world.lane_ids[i] if i is not None else None,
             "signal_tls": signal.tls_id if signal else None,
             "signal_state": signal.state if signal else None,
             "signal_distance_m": signal.distance_m if signal else None,
             "ahead_id": ahead.vehicle_id if ahead else None,
             "ahead_gap_m": ahead.gap_m if ahead else None,
             "predecessor_id": v.predecessor_id, "predecessor_speed_mps": pred_speed,
-            "gap_to_predecessor_m": gap, "measured_gap_m": measured_gap(v, self._bumper.get(v.id)),
+            "gap_to_predecessor_m": gap,
+            "measured_gap_m": measured if v.predecessor_id else None,
             "desired_gap_m": desired, "spacing_error_m": spacing_error_m(gap, desired),
             "time_headway_s": time_headway_s(gap, speed) if v.predecessor_id else None,
             "ttc_s": time_to_collision_s(gap, speed, pred_speed),
@@ -213,38 +202,40 @@ class TrajectoryRecorder:
             self.rows_written += len(self._rows)
             self._rows.clear()
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         self.flush()
         if self.writer is not None:
             self.writer.close()
 
 
-def desired_gap(v: PlatoonVehicle) -> float | None:
-    """The follower controller's spacing policy at the vehicle's speed, if it declares one."""
-    policy = getattr(v.controller, "desired_gap_m", None)
-    if v.predecessor_id is None or not callable(policy):
-        return None
-    return float(policy(float(v.state.speed_mps[0])))
+class EventWriter(StepHook):
+    """Writes the run's events to `events.csv` as they happen (see docs/metrics.md)."""
 
+    def __init__(self, path: Path):
+        self.path = path
+        self._file: Any = None
+        self._csv: Any = None
 
-def measured_gap(v: PlatoonVehicle, previous_bumper: tuple[float, float] | None) -> float | None:
-    """The gap the follower's perception estimated when it chose this step's command:
-    from its front bumper at the start of the step (`previous_bumper`) to the tracked
-    rear of its predecessor (controllers with a `track` having `x_m`, `y_m`)."""
-    track = getattr(v.controller, "track", None)
-    if v.predecessor_id is None or track is None or previous_bumper is None:
-        return None
-    x, y = getattr(track, "x_m", None), getattr(track, "y_m", None)
-    if x is None or y is None:
-        return None
-    return math.hypot(float(x) - previous_bumper[0], float(y) - previous_bumper[1])
+    def on_start(self, run: RunContext) -> None:
+        self._file = self.path.open("w", newline="")
+        self._csv = csv.writer(self._file)
+        self._csv.writerow(EVENT_COLUMNS)
+
+    def on_step(self, record: StepRecord) -> None:
+        if record.events:
+            self._csv.writerows(event_row(e) for e in record.events)
+
+    def on_end(self, outcome: RunOutcome) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
 
 
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-class ScanSnapshot:
+class ScanSnapshot(StepHook):
     """Keeps one laser scan for the report, with the footprints (its own excluded) and
     wall segments it was cast against; `save` writes an .npz that `platoon_sumo.report`
     draws with `plot_scan`.
@@ -260,38 +251,31 @@ class ScanSnapshot:
         self.vehicle_id = vehicle_id
         self._kept: list[tuple[int, LaserScan, np.ndarray, str]] = []
         self._count = 0
-        self._previous: tuple[float, np.ndarray, dict[str, int]] | None = None
         self.segments: np.ndarray | None = None
         self.frozen = False
 
-    def on_start(self, sim: CoSimulation) -> None:
-        self.segments = sim.static_segments
+    def on_start(self, run: RunContext) -> None:
+        self.segments = run.static_segments
 
-    def on_end(self, sim: CoSimulation) -> None:
-        pass
-
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
-        if self.frozen:
-            return
-        previous = self._previous
-        self._previous = (record.time_s, sim.rects, record.world.index)
-        if previous is None:
+    def on_step(self, record: StepRecord) -> None:
+        sensed, rects_seen = record.sensed_world, record.sensed_footprints
+        if self.frozen or sensed is None or rects_seen is None:
             return
         candidates = [v for v in record.vehicles if v.scan is not None]
         if self.vehicle_id is not None:
             candidates = [v for v in candidates if v.id == self.vehicle_id]
         else:
-            candidates.sort(key=lambda v: (v.plan.index != 1, v.plan.index, v.id))
+            candidates.sort(key=lambda v: (v.index != 1, v.index, v.id))
         if not candidates:
             return
         v = candidates[0]
         if self.vehicle_id is None:
             self.vehicle_id = v.id
         scan = v.scan
-        if scan is None or abs(scan.stamp_s - previous[0]) > 1e-9:
+        if scan is None or abs(scan.stamp_s - sensed.time_s) > 1e-9:
             return  # not a new scan of this step
-        own = previous[2].get(v.id)
-        rects = np.delete(previous[1], own, axis=0) if own is not None else previous[1]
+        own = sensed.index.get(v.id)
+        rects = np.delete(rects_seen, own, axis=0) if own is not None else rects_seen
         if self.at_s is not None:
             self._kept = [(0, scan, rects, v.id)]
             self.frozen = record.time_s >= self.at_s

@@ -14,14 +14,20 @@ T = TypeVar("T")
 class Registry(Generic[T]):
     """Maps a name used in scenario files to a class; `pkg.module:Class` loads a user's own."""
 
-    def __init__(self, kind: str):
+    def __init__(self, kind: str, check: Callable[[T], str | None] | None = None):
+        """`check` returns why an object is not a valid plug-in of this kind (None: it
+        is); it runs when a plug-in is registered and when one is loaded by its path."""
         self.kind = kind
+        self.check = check
         self._entries: dict[str, T] = {}
 
     def register(self, name: str) -> Callable[[T], T]:
         def decorator(obj: T) -> T:
             if name in self._entries:
                 raise ValueError(f"{self.kind} '{name}' is already registered")
+            problem = self.check(obj) if self.check is not None else None
+            if problem:
+                raise TypeError(f"{self.kind} '{name}' {problem}")
             self._entries[name] = obj
             return obj
 
@@ -52,9 +58,13 @@ class Registry(Generic[T]):
                     f"cannot import plug-in module '{module_name}': {type(exc).__name__}: {exc}"
                 ) from exc
             try:
-                return getattr(module, attr)
+                obj: T = getattr(module, attr)
             except AttributeError:
                 raise LookupError(f"module '{module_name}' has no attribute '{attr}'") from None
+            problem = self.check(obj) if self.check is not None else None
+            if problem:
+                raise LookupError(f"'{name}' is not a {self.kind}: it {problem}")
+            return obj
         hint = did_you_mean(name, self._entries)
         known = ", ".join(self.names())
         suffix = f"; {hint}" if hint else ""

@@ -23,8 +23,10 @@ import pandas as pd
 
 import platoon_sumo
 from platoon_sumo.config_loader import FieldError
-from platoon_sumo.cosim import CoSimulation, RunCounters, StepHook
+from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import ScenarioError
+from platoon_sumo.events import WALL, Event, EventKind, count, of_kind
+from platoon_sumo.loop.context import StepHook
 from platoon_sumo.metrics import RunStats
 from platoon_sumo.metrics.sumo_outputs import (
     EDGEDATA_FILE,
@@ -35,8 +37,7 @@ from platoon_sumo.metrics.sumo_outputs import (
     write_edgedata_additional,
 )
 from platoon_sumo.metrics.tables import by_id, overall, summary_tables, write_table
-from platoon_sumo.platoon import PlatoonEvent
-from platoon_sumo.recorder import ScanSnapshot, TrajectoryRecorder
+from platoon_sumo.recorder import EventWriter, ScanSnapshot, TrajectoryRecorder
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
 from platoon_sumo.sumo.shapes import read_wall_segments
@@ -46,7 +47,7 @@ from platoon_sumo.traffic import write_traffic_inputs
 OUTPUT_FILES = (
     "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
     "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
-    EDGEDATA_FILE, "scan_snapshot.npz",
+    EDGEDATA_FILE, "scan_snapshot.npz", "events.csv",
 )  # fmt: skip
 
 
@@ -138,7 +139,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         directory / f"trajectories.{out.format}", out.chunk_rows, out.format, stats,
         write=out.trajectories,
     )  # fmt: skip
-    all_hooks: list[StepHook] = [recorder]
+    all_hooks: list[StepHook] = [recorder, EventWriter(directory / "events.csv")]
     snapshot = None
     if any(m.laser is not None for p in plan.platoons for m in p.members):
         snapshot = ScanSnapshot(out.scan_snapshot_s)
@@ -164,19 +165,15 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
             rng=np.random.default_rng(sc.simulation.seed),
             static_segments=walls if len(walls) else None,
         )
-        counters = sim.run()
+        sim.run()
         end_time = backend.time_s
     finally:
         backend.close()
     wall_s = time.perf_counter() - wall_start
-    summary = _summary(plan, counters, end_time, wall_s, len(sim.active))
-    summary["platoons_not_inserted"] = sorted(p.config.id for p in sim.pending_platoons)
-    summary["removed_off_route"] = [dataclasses.asdict(r) for r in counters.removed_off_route]
-    summary.update(_platoon_events(sim.links.events))
+    summary = _summary(plan, sim, end_time, wall_s)
     summary["followers"] = stats.followers()
     trips, sumo_summary, edgedata = read_run_outputs(directory)
-    links = getattr(sim, "links", None)
-    vehicles, platoons = summary_tables(stats, trips, getattr(links, "events", None))
+    vehicles, platoons = summary_tables(stats, trips)
     write_table(directory / "vehicles.csv", vehicles)
     write_table(directory / "platoons.csv", platoons)
     summary["platoons"] = by_id(platoons, "platoon_id")
@@ -191,16 +188,11 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     return RunResult(directory, summary)
 
 
-def _summary(
-    plan: RunPlan,
-    counters: RunCounters,
-    end_time_s: float,
-    wall_s: float,
-    still_running: int,
-) -> dict[str, Any]:
+def _summary(plan: RunPlan, sim: CoSimulation, end_time_s: float, wall_s: float) -> dict[str, Any]:
     sc = plan.scenario
     sim_s = end_time_s - sc.simulation.begin_s
     planned = sum(len(p.members) for p in plan.platoons)
+    ctx, events = sim.ctx, sim.events
     return {
         "status": "complete",
         "scenario": sc.name,
@@ -220,33 +212,71 @@ def _summary(
         "simulated_s": sim_s,
         "wall_clock_s": round(wall_s, 3),
         "real_time_factor": round(sim_s / wall_s, 2) if wall_s > 0 else None,
-        "steps": counters.steps,
+        "steps": ctx.steps,
         "platoon_vehicles": {
             "planned": planned,
-            "departed": len(counters.platoon_departed),
-            "arrived": len(counters.platoon_arrived),
-            "still_running": still_running,
+            "departed": count(events, EventKind.DEPARTED),
+            "arrived": count(events, EventKind.ARRIVED),
+            "still_running": len(ctx.fleet),
         },
-        "all_vehicles": {
-            "departed": counters.departed_total,
-            "arrived": counters.arrived_total,
-        },
-        "collisions": len(counters.collisions),
-        "collision_events": [dataclasses.asdict(c) for c in counters.collisions],
-        "sumo_collisions": counters.sumo_collisions,
-        "sumo_collisions_with_platoons": counters.sumo_collisions_with_platoons,
-        "teleports": counters.teleports,
-        "emergency_brakings": counters.emergency_brakings,
-        "sumo_speed_caps": counters.sumo_speed_caps,
-        "red_light_violations": len(counters.red_light_violations),
-        "red_light_events": [dataclasses.asdict(v) for v in counters.red_light_violations],
+        "all_vehicles": {"departed": ctx.departed_total, "arrived": ctx.arrived_total},
+        "platoons_not_inserted": sorted(p.config.id for p in sim.pending_platoons),
+        **event_summary(events, {m.vehicle_id for p in plan.platoons for m in p.members}),
     }
 
 
-def _platoon_events(events: list[PlatoonEvent]) -> dict[str, Any]:
-    """Counts of splits, re-formations and cut-ins, and the events themselves."""
-    kinds = ("split", "reformation", "cut_in")
+def event_summary(events: list[Event], platoon_vehicle_ids: set[str]) -> dict[str, Any]:
+    """The summary's counts and logs, all from the run's event stream."""
+    contacts = of_kind(events, EventKind.COLLISION, EventKind.WALL_CONTACT)
+    sumo = of_kind(events, EventKind.SUMO_COLLISION)
+    red = of_kind(events, EventKind.RED_LIGHT)
+    structure = of_kind(events, EventKind.SPLIT, EventKind.REFORMATION, EventKind.CUT_IN)
     return {
-        "platoon_events": {k + "s": sum(e.kind == k for e in events) for k in kinds},
-        "platoon_event_log": [dataclasses.asdict(e) for e in events],
+        "collisions": len(contacts),
+        "collision_events": [
+            dict(
+                zip(
+                    ("time_s", "vehicle_a", "vehicle_b"),
+                    (e.time_s, *sorted((e.vehicle_id, e.other_id), key=lambda v: (v == WALL, v))),
+                    strict=True,
+                )
+            )
+            for e in contacts
+        ],
+        "sumo_collisions": len(sumo),
+        "sumo_collisions_with_platoons": sum(
+            e.vehicle_id in platoon_vehicle_ids or e.other_id in platoon_vehicle_ids for e in sumo
+        ),
+        "teleports": count(events, EventKind.TELEPORT),
+        "emergency_brakings": count(events, EventKind.EMERGENCY_BRAKING),
+        "sumo_speed_caps": count(events, EventKind.SUMO_SPEED_CAP),
+        "red_light_violations": len(red),
+        "red_light_events": [
+            {
+                "time_s": e.time_s,
+                "vehicle_id": e.vehicle_id,
+                "tls_id": e.other_id,
+                "link_index": int(e.detail.split()[1]),
+                "state": e.detail.split()[2],
+            }
+            for e in red
+        ],
+        "removed_off_route": [
+            {"time_s": e.time_s, "vehicle_id": e.vehicle_id, "reason": e.detail}
+            for e in of_kind(events, EventKind.REMOVED)
+        ],
+        "platoon_events": {
+            kind.value + "s": count(structure, kind)
+            for kind in (EventKind.SPLIT, EventKind.REFORMATION, EventKind.CUT_IN)
+        },
+        "platoon_event_log": [
+            {
+                "time_s": e.time_s,
+                "platoon_id": e.platoon_id,
+                "follower_id": e.vehicle_id,
+                "kind": e.kind.value,
+                "other_id": e.other_id,
+            }
+            for e in structure
+        ],
     }

@@ -20,17 +20,17 @@ from typing import Any
 
 import yaml
 
+from platoon_sumo.actuation import ACTUATORS
 from platoon_sumo.config_loader import load_dataclass, require, require_choice, require_positive
 from platoon_sumo.control import CONTROLLERS, Controller
 from platoon_sumo.errors import ScenarioError, did_you_mean
+from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (registers)
+from platoon_sumo.sensors.base import SENSORS, SensorModel
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
-
-#: How a platoon's commands reach SUMO (see PlatoonConfig.actuation).
-ACTUATIONS = ("planar", "lane")
 
 VEHICLE_CLASSES = (
     "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
@@ -351,6 +351,18 @@ class SensorConfig:
 
 
 @dataclass(frozen=True)
+class SensorSpec:
+    """A sensor model by name, with its parameters."""
+
+    type: str
+    """A registered sensor model or `package.module:Class`."""
+    name: str | None = None
+    """Key of its messages in the controller's `observation.sensors`; default: `type`."""
+    params: Mapping[str, Any] = field(default_factory=dict)
+    """The model's parameters (its Params dataclass)."""
+
+
+@dataclass(frozen=True)
 class RoleConfig:
     """How a platoon member of one role (leader / follower) decides and senses."""
 
@@ -360,6 +372,9 @@ class RoleConfig:
     """The controller's parameters (its Params dataclass; see the controller tables)."""
     sensor: SensorConfig | None = None
     """Laser scanner of the members in this role; null: no scan in their observations."""
+    sensors: tuple[SensorSpec, ...] = ()
+    """Further sensors (registered sensor models or `package.module:Class`), each
+    delivered to the controller as `observation.sensors[name]`."""
 
 
 @dataclass(frozen=True)
@@ -405,7 +420,7 @@ class PlatoonConfig:
             bool(self.id) and " " not in self.id and "." not in self.id,
             "id", "must be a non-empty name without spaces or dots",
         )  # fmt: skip
-        require_choice(self.actuation, ACTUATIONS, "actuation")
+        require_choice(self.actuation, ACTUATORS.names(), "actuation")
         require(self.members >= 1, "members", "must be >= 1")
         require(self.members <= 100, "members", "must be <= 100")
         require(self.spacing_m > 0, "spacing_m", "must be > 0")
@@ -542,6 +557,13 @@ def load_scenario(path: str | Path) -> ScenarioSource:
 
 
 @dataclass(frozen=True)
+class SensorPlan:
+    name: str
+    model: type[SensorModel]
+    params: Any
+
+
+@dataclass(frozen=True)
 class MemberPlan:
     vehicle_id: str
     platoon_id: str
@@ -550,7 +572,15 @@ class MemberPlan:
     controller_cls: type[Controller]
     controller_params: Any
     depart_pos_m: float
-    laser: LaserConfig | None = None
+    sensors: tuple[SensorPlan, ...] = ()
+
+    @property
+    def laser(self) -> LaserConfig | None:
+        """The member's laser scanner, if it has one."""
+        for sensor in self.sensors:
+            if isinstance(sensor.params, LaserConfig):
+                return sensor.params
+        return None
 
 
 @dataclass(frozen=True)
@@ -780,22 +810,10 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
             cls = CONTROLLERS.get(ctrl.type)
         except LookupError as exc:
             raise ScenarioError(file, f"{ctrl_key}.type", str(exc)) from None
-        params_cls = getattr(cls, "Params", None)
-        if not (
-            isinstance(params_cls, type)
-            and dataclasses.is_dataclass(params_cls)
-            and callable(getattr(cls, "reset", None))
-            and callable(getattr(cls, "step", None))
-        ):
-            raise ScenarioError(
-                file, f"{ctrl_key}.type",
-                f"'{ctrl.type}' is not a controller: "
-                "it needs a Params dataclass, reset() and step()",
-            )  # fmt: skip
         params = load_dataclass(cls.Params, dict(ctrl.params), file, f"{ctrl_key}.params")
         pos = depart_pos - k * (p.vehicle.length_m + p.spacing_m)
-        laser = _laser(ctrl.sensor, file, f"{ctrl_key}.sensor")
-        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, laser))
+        sensors = _sensors(ctrl, file, ctrl_key)
+        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, sensors))
     return PlatoonPlan(
         config=p,
         edges=edges,
@@ -804,6 +822,29 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         model=VEHICLE_MODELS.get(p.vehicle.model),
         limits=p.vehicle.limits(),
     )
+
+
+def _sensors(role: RoleConfig, file: str, key: str) -> tuple[SensorPlan, ...]:
+    """The role's laser (`sensor`, named "laser") and further sensors, checked."""
+    plans: list[SensorPlan] = []
+    laser = _laser(role.sensor, file, f"{key}.sensor")
+    if laser is not None:
+        plans.append(SensorPlan("laser", SENSORS.get("laser"), laser))
+    for i, spec in enumerate(role.sensors):
+        at = f"{key}.sensors[{i}]"
+        try:
+            model = SENSORS.get(spec.type)
+        except LookupError as exc:
+            raise ScenarioError(file, f"{at}.type", str(exc)) from None
+        name = spec.name or spec.type
+        if any(p.name == name for p in plans):
+            raise ScenarioError(
+                file, f"{at}.name", f"a sensor named '{name}' already exists",
+                "give each sensor its own name",
+            )  # fmt: skip
+        params = load_dataclass(model.Params, dict(spec.params), file, f"{at}.params")
+        plans.append(SensorPlan(name, model, params))
+    return tuple(plans)
 
 
 def _laser(sensor: SensorConfig | None, file: str, key: str) -> LaserConfig | None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import re
 import subprocess
@@ -10,7 +9,7 @@ import sys
 
 import pytest
 
-from platoon_sumo.cosim import Collision, RedLightViolation
+from platoon_sumo.events import EVENT_COLUMNS, EventKind
 from platoon_sumo.recorder import TRAJECTORY_COLUMNS
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO, URBAN_GRID_NET
@@ -82,9 +81,16 @@ def test_outputs_doc_lists_every_summary_key(tiny_run):
     assert sorted(_first_column(section)) == sorted(_flat_keys(summary))
     for name in summary["versions"]:
         assert f"`{name}`" in section
-    for record in (Collision, RedLightViolation):
-        for f in dataclasses.fields(record):
-            assert f"`{f.name}`" in section, f"{record.__name__}.{f.name} not documented"
+
+
+def test_outputs_doc_lists_every_event_kind_and_column():
+    section = _section(OUTPUTS_MD.read_text(encoding="utf-8"), "`events.csv`")
+    assert _first_column(section)[: len(EVENT_COLUMNS)] == list(EVENT_COLUMNS)
+    for kind in EventKind:
+        assert f"`{kind.value}`" in section, f"event kind {kind.value} not documented"
+    metrics = (REPO / "docs" / "metrics.md").read_text(encoding="utf-8")
+    for kind in EventKind:
+        assert f"`{kind.value}`" in metrics, f"event kind {kind.value} not defined in metrics.md"
 
 
 def test_outputs_doc_describes_the_files_a_run_writes(tiny_run):

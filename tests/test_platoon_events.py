@@ -12,9 +12,10 @@ class M:
 
 def feed(monitor: LinkMonitor, linked: list[bool], intruders=None, dt=0.5):
     intruders = intruders or [None] * len(linked)
+    kinds = []
     for k, (ok, who) in enumerate(zip(linked, intruders, strict=True)):
-        monitor.observe(k * dt, "p", "p.1", "p.0", ok, who)
-    return [e.kind for e in monitor.events]
+        kinds += [e.kind for e in monitor.observe(k * dt, "p", "p.1", "p.0", ok, who)]
+    return kinds
 
 
 def test_start_up_is_formation_not_reformation():

@@ -6,9 +6,12 @@ Command. They never call SUMO (the loop reads the world once and hands them a vi
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
+from platoon_sumo.errors import PluginError
 from platoon_sumo.path import RoutePath
 from platoon_sumo.registry import Registry
 from platoon_sumo.sensors.laser import LaserScan
@@ -50,6 +53,10 @@ class Observation:
     """Nearest vehicle ahead on the route lanes (the traffic picture a car's ADAS has);
     laser-only followers ignore it and use `scan`."""
     scan: LaserScan | None = None
+    """The latest scan of the vehicle's laser (`sensors["laser"]`), or None."""
+    sensors: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    """The latest message of each of the vehicle's sensors, by the name the scenario
+    gives it (the laser is "laser"); a sensor that has not produced one is absent."""
 
 
 @dataclass(frozen=True)
@@ -107,4 +114,66 @@ class Controller(Protocol):
         ...
 
 
-CONTROLLERS: Registry[type[Controller]] = Registry("controller")
+def check_controller(cls: object) -> str | None:
+    """Why `cls` cannot be a controller (None when it can)."""
+    params = getattr(cls, "Params", None)
+    if (
+        isinstance(params, type)
+        and dataclasses.is_dataclass(params)
+        and callable(getattr(cls, "reset", None))
+        and callable(getattr(cls, "step", None))
+    ):
+        return None
+    return "needs a Params dataclass, reset() and step()"
+
+
+CONTROLLERS: Registry[type[Controller]] = Registry("controller", check_controller)
+
+
+def step_batch(
+    controllers: Sequence[Controller], observations: Sequence[Observation]
+) -> list[Command]:
+    """Commands for many vehicles at once.
+
+    Controllers of one class whose class defines ``step_many(controllers, observations)``
+    are stepped together (built-in controllers work over the whole batch); any other
+    controller is stepped one by one with ``step``, so plug-ins written against ``step``
+    keep working."""
+    commands: list[Command | None] = [None] * len(controllers)
+    groups: dict[type, list[int]] = {}
+    for k, controller in enumerate(controllers):
+        groups.setdefault(type(controller), []).append(k)
+    for cls, indices in groups.items():
+        many = getattr(cls, "step_many", None)
+        if many is not None:
+            first = observations[indices[0]]
+            try:
+                out = many([controllers[k] for k in indices], [observations[k] for k in indices])
+            except Exception as exc:
+                raise _failure(cls, first, exc) from exc
+            for k, command in zip(indices, out, strict=True):
+                commands[k] = _checked(cls, observations[k], command)
+        else:
+            for k in indices:
+                try:
+                    command = controllers[k].step(observations[k])
+                except Exception as exc:
+                    raise _failure(cls, observations[k], exc) from exc
+                commands[k] = _checked(cls, observations[k], command)
+    return [c for c in commands if c is not None]
+
+
+def _failure(cls: type, obs: Observation, exc: Exception) -> PluginError:
+    return PluginError(
+        f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}' "
+        f"failed at t={obs.time_s:.2f} s: {type(exc).__name__}: {exc}"
+    )
+
+
+def _checked(cls: type, obs: Observation, command: object) -> Command:
+    if not isinstance(command, Command):
+        raise PluginError(
+            f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}' "
+            f"returned {type(command).__name__} at t={obs.time_s:.2f} s, not a Command"
+        )
+    return command

@@ -69,7 +69,7 @@ from typing import ClassVar, Literal
 import numpy as np
 
 from platoon_sumo.config_loader import require, require_choice, require_positive
-from platoon_sumo.control.base import CONTROLLERS, Command, Observation
+from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
 from platoon_sumo.control.perception import (
     PerceptionParams,
     RearTracker,
@@ -226,6 +226,7 @@ class LaserFollower:
         self._route: RoutePath | None = None
         self._route_s: float | None = None
         self._outside_since: float | None = None
+        self._measured_gap_m: float | None = None
         self.mode = "lost"
 
     def desired_gap_m(self, speed_mps: float) -> float:
@@ -270,7 +271,15 @@ class LaserFollower:
                 cmd = self._stop(obs)
         if self._blocked:
             cmd = Command(speed_mps=0.0, yaw_rate_radps=cmd.yaw_rate_radps)
-        return cmd
+        measured = self._measured_gap_m if self.mode == "following" else None
+        return replace(cmd, telemetry=Telemetry(self.mode, measured, self.gap_policy))
+
+    @property
+    def gap_policy(self) -> GapPolicy:
+        """The spacing policy as data (for the trajectory table)."""
+        p = self.params
+        time_gap = p.time_gap_s if p.policy == "constant_time_gap" else 0.0
+        return GapPolicy(p.standstill_gap_m, time_gap)
 
     # ------------------------------------------------------------------ perception
 
@@ -416,6 +425,7 @@ class LaserFollower:
         c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
         fx, fy = obs.x_m + obs.front_offset_m * c, obs.y_m + obs.front_offset_m * s
         gap = math.hypot(rx - fx, ry - fy)
+        self._measured_gap_m = gap
         ux, uy = ((rx - fx) / gap, (ry - fy) / gap) if gap > 1e-9 else (c, s)
         own_vx, own_vy = obs.speed_mps * c, obs.speed_mps * s
         range_rate = ux * (vx - own_vx) + uy * (vy - own_vy)

@@ -16,18 +16,21 @@ from typing import Any
 
 import pandas as pd
 
+from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import PathTrail
 from platoon_sumo.metrics.stats import RunStats, table_rows
 
-__all__ = ["RunStats", "follower_metrics", "summarise_trajectories"]
+__all__ = ["RunStats", "follower_metrics", "read_events", "summarise_trajectories"]
 
 
 def summarise_trajectories(
     trajectories: pd.DataFrame,
     planned: Mapping[str, int] | None = None,
     start_s: float = 0.0,
+    events: pd.DataFrame | None = None,
 ) -> RunStats:
-    """Feed a trajectory table to `RunStats`, step by step.
+    """Feed a trajectory table (and the run's `events.csv`, for the event counts) to
+    `RunStats`, step by step: the same numbers the run computed online.
 
     Tables without `lateral_deviation_m` (hand-built ones) get it by replaying each
     predecessor's path as the recorder does (every position kept).
@@ -48,7 +51,19 @@ def summarise_trajectories(
                     trail.deviation(float(row["x_m"]), float(row["y_m"])) if trail else None
                 )
         stats.add_step(time_s, rows)
+    if events is not None:
+        stats.add_events(read_events(events))
     return stats
+
+
+def read_events(table: pd.DataFrame) -> list[Event]:
+    """Events from an `events.csv` table (as read by pandas)."""
+    text = table.astype(object).where(table.notna(), "")
+    return [
+        Event(float(r.time_s), EventKind(r.kind), str(r.vehicle_id), str(r.other_id),
+              str(r.platoon_id), str(r.detail))
+        for r in text.itertuples(index=False)
+    ]  # fmt: skip
 
 
 def follower_metrics(trajectories: pd.DataFrame) -> dict[str, dict[str, dict[str, Any]]]:

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import l2_gain
 
 Row = Mapping[str, Any]
@@ -127,8 +128,6 @@ class VehicleStats:
     collisions: int = 0
     red_light_violations: int = 0
     cut_ins: int = 0
-    _emergency: bool = False
-    _cut_in: bool = False
     _previous_gap: float | None = None
 
     def summary(self) -> dict[str, Any]:
@@ -230,22 +229,9 @@ class RunStats:
             if math.isnan(v.first_time_s):
                 v.first_time_s = time_s
             v.last_time_s = time_s
-            supervisor = _text(row, "supervisor")
-            emergency = supervisor == "emergency"
-            if emergency and not v._emergency:
-                v.emergency_brakings += 1
-            v._emergency = emergency
             pred_id = _text(row, "predecessor_id")
             gap = _num(row, "gap_to_predecessor_m")
             previous_gap, v._previous_gap = v._previous_gap, gap
-            ahead, ahead_gap = _text(row, "ahead_id"), _num(row, "ahead_gap_m")
-            cut_in = (
-                pred_id is not None and ahead is not None and ahead not in by_id
-                and ahead_gap is not None and (gap is None or ahead_gap < gap)
-            )  # fmt: skip
-            if cut_in and not v._cut_in:
-                v.cut_ins += 1
-            v._cut_in = cut_in
             if not in_window:
                 continue
             v.steps += 1
@@ -303,22 +289,34 @@ class RunStats:
                 _in_view(r) is True for r in members if _text(r, "predecessor_id") is not None
             )
             p.intact_steps += int(intact)
-            if p._intact and not intact:
-                p.splits += 1
             p._intact = intact
 
-    def add_events(
-        self, collisions: Iterable[tuple[str, str]] = (), violations: Iterable[str] = ()
-    ) -> None:
-        """Collisions (pairs of ids, either may be a platoon vehicle) and red-light
-        violations (vehicle ids) found in a step."""
-        for pair in collisions:
-            for vid in pair:
-                if vid in self.vehicles:
-                    self.vehicles[vid].collisions += 1
-        for vid in violations:
-            if vid in self.vehicles:
-                self.vehicles[vid].red_light_violations += 1
+    def add_events(self, events: Iterable[Event]) -> None:
+        """Count a step's events per vehicle and platoon (the one source of every event
+        count; definitions in docs/metrics.md)."""
+        for e in events:
+            kind = e.kind
+            if kind in (EventKind.COLLISION, EventKind.WALL_CONTACT):
+                for vid in (e.vehicle_id, e.other_id):
+                    if vid in self.vehicles:
+                        self.vehicles[vid].collisions += 1
+                continue
+            v = self.vehicles.get(e.vehicle_id)
+            if kind is EventKind.SPLIT:
+                p = self.platoons.get(e.platoon_id)
+                if p is None:
+                    p = self.platoons[e.platoon_id] = PlatoonStats(
+                        e.platoon_id, self.planned.get(e.platoon_id, 0)
+                    )
+                p.splits += 1
+            elif v is None:
+                continue
+            elif kind is EventKind.RED_LIGHT:
+                v.red_light_violations += 1
+            elif kind is EventKind.EMERGENCY_BRAKING:
+                v.emergency_brakings += 1
+            elif kind is EventKind.CUT_IN:
+                v.cut_ins += 1
 
     # ------------------------------------------------------------------ results
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import csv
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -14,27 +14,13 @@ from platoon_sumo.metrics.sumo_outputs import join_trips, trip_metrics
 
 
 def summary_tables(
-    stats: RunStats, trips: pd.DataFrame, link_events: Iterable[Any] | None = None
+    stats: RunStats, trips: pd.DataFrame
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """(vehicles, platoons) rows: our metrics with SUMO's travel and emission figures.
-
-    `link_events` (the loop's `PlatoonEvent`s, with `kind`, `platoon_id`, `follower_id`),
-    when given, are the source of splits and cut-ins.
-    """
+    """(vehicles, platoons) rows: our metrics with SUMO's travel and emission figures."""
     vehicles = join_trips(stats.vehicle_summaries(), trip_metrics(trips))
-    if link_events is not None:
-        events = list(link_events)
-        for v in vehicles:
-            v["cut_ins"] = sum(
-                1 for e in events if e.kind == "cut_in" and e.follower_id == v["vehicle_id"]
-            )
     platoons = stats.platoon_summaries()
     for p in platoons:
         members = [v for v in vehicles if v["platoon_id"] == p["platoon_id"]]
-        if link_events is not None:
-            mine = [e for e in events if e.platoon_id == p["platoon_id"]]
-            p["splits"] = sum(1 for e in mine if e.kind == "split")
-            p["cut_ins"] = sum(1 for e in mine if e.kind == "cut_in")
         times = [v["travel_time_s"] for v in members if v.get("travel_time_s") is not None]
         p["mean_travel_time_s"] = sum(times) / len(times) if times else None
         for key, unit in (("fuel", "kg"), ("co2", "kg")):

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from platoon_sumo.errors import did_you_mean
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 
 @dataclass(frozen=True)
@@ -169,6 +170,13 @@ class LaserScan:
     origin_y_m: float
     heading_rad: float
     stamp_s: float = 0.0
+    hit_labels: IntArray | None = field(default=None, repr=False)
+    """Ground truth per ray (not part of the ROS message): the row of the footprint
+    array the scan was cast against whose surface the reading comes from; rows past the
+    footprints are wall segments; -1 where nothing returned (``+inf`` or a dropout)."""
+    predecessor_rays: int | None = None
+    """Ground truth: rays that returned from the vehicle's platoon predecessor (None
+    without one)."""
 
     @classmethod
     def from_ranges(
@@ -178,6 +186,8 @@ class LaserScan:
         origin: ArrayLike,
         heading_rad: float,
         stamp_s: float = 0.0,
+        hit_labels: IntArray | None = None,
+        predecessor_rays: int | None = None,
     ) -> LaserScan:
         """Wrap a row of ``cast_rays``/``scan_many`` output with its metadata."""
         r = np.asarray(ranges, dtype=np.float64)
@@ -197,6 +207,8 @@ class LaserScan:
             origin_y_m=oy,
             heading_rad=float(heading_rad),
             stamp_s=float(stamp_s),
+            hit_labels=hit_labels,
+            predecessor_rays=predecessor_rays,
         )
 
     @property

@@ -16,6 +16,15 @@ Why it is fast without giving up exactness:
 * All sensors' (ray, segment) pairs are evaluated together in a few large numpy
   operations (chunked to bound memory), so there is no Python loop per sensor.
 
+Hit identities (``return_hits=True``): every evaluated pair carries the index of its
+obstacle, and after a chunk's ``minimum.at`` the pairs whose distance equals the ray's
+new minimum are its winners; a second ``minimum.at`` keeps the lowest winning index
+per ray, so a tie (a shared corner, a duplicated obstacle) resolves to the lower index
+whatever the batching or chunking. A ray whose minimum drops in a later chunk forgets
+the identity it had (only rays of sensors met in an earlier chunk need that check).
+The distances take the same path as without identities, so the ranges are
+bit-identical.
+
 Hit distance along a ray of unit direction d from the sensor to the line through a with
 direction e: ``t = cross(a, e) / cross(d, e)``.
 """
@@ -24,6 +33,7 @@ from __future__ import annotations
 
 import math
 from statistics import NormalDist
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,6 +50,49 @@ _TWO_PI = 2.0 * math.pi
 _CULL_SLACK_M = 1e-6
 #: (ray, segment) evaluations per numpy batch: bounds memory and stays cache friendly.
 _ROWS_PER_CHUNK = 1 << 16
+#: Hit identity of a ray without a return (``+inf`` or a ``NaN`` dropout).
+NO_RETURN = -1
+#: Working identity of a ray no evaluated pair has won yet (above every real index).
+_UNSET = np.iinfo(np.intp).max
+
+
+@overload
+def cast_rays(
+    origin: ArrayLike,
+    heading: float,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: Literal[False] = ...,
+) -> FloatArray: ...
+
+
+@overload
+def cast_rays(
+    origin: ArrayLike,
+    heading: float,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: Literal[True],
+) -> tuple[FloatArray, IntArray]: ...
+
+
+@overload
+def cast_rays(
+    origin: ArrayLike,
+    heading: float,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: bool,
+) -> FloatArray | tuple[FloatArray, IntArray]: ...
 
 
 def cast_rays(
@@ -49,7 +102,9 @@ def cast_rays(
     rectangles: ArrayLike | None = None,
     segments: ArrayLike | None = None,
     rng: np.random.Generator | None = None,
-) -> FloatArray:
+    *,
+    return_hits: bool = False,
+) -> FloatArray | tuple[FloatArray, IntArray]:
     """Ranges [m] of one scan, shape ``(samples,)``, REP 117 conventions.
 
     ``origin`` is the sensor position (x, y) [m], ``heading`` its forward direction
@@ -60,12 +115,67 @@ def cast_rays(
     A sensor strictly inside a rectangle sees that rectangle's inner walls (usually
     closer than range_min, so ``-inf``); a sensor exactly on a surface reads 0 on every
     ray. Noise and dropouts need ``rng`` (see ``apply_noise``).
+
+    With ``return_hits=True`` the result is ``(ranges, hits)``: ``hits`` (intp, same
+    shape) names the obstacle each reading comes from: ``i`` for ``rectangles[i]``,
+    ``N + j`` for ``segments[j]``, ``NO_RETURN`` (-1) where the reading is ``+inf`` or a
+    ``NaN`` dropout; a ``-inf`` reading keeps the identity of the too-close surface.
+    Surfaces at exactly the same distance on a ray give the lowest index (a sensor on a
+    surface: the lowest surface it touches, on every ray). The ranges and the draws from
+    ``rng`` are the same as with ``return_hits=False``.
     """
     origins = np.asarray(origin, dtype=np.float64).reshape(1, 2)
     headings = np.asarray([heading], dtype=np.float64)
     rects, segs = obstacle_arrays(rectangles, segments)
-    raw = _raw_ranges(origins, headings, config, rects, segs, None, use_grid=False)
-    return _finish(raw, config, rng)[0]
+    raw, hits = _raw_ranges(
+        origins, headings, config, rects, segs, None, use_grid=False, with_hits=return_hits
+    )
+    ranges = _finish(raw, config, rng)
+    if hits is None:
+        return ranges[0]
+    return ranges[0], _no_return(hits, ranges)[0]
+
+
+@overload
+def scan_many(
+    origins: ArrayLike,
+    headings: ArrayLike,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    exclude: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: Literal[False] = ...,
+) -> FloatArray: ...
+
+
+@overload
+def scan_many(
+    origins: ArrayLike,
+    headings: ArrayLike,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    exclude: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: Literal[True],
+) -> tuple[FloatArray, IntArray]: ...
+
+
+@overload
+def scan_many(
+    origins: ArrayLike,
+    headings: ArrayLike,
+    config: LaserConfig,
+    rectangles: ArrayLike | None = ...,
+    segments: ArrayLike | None = ...,
+    exclude: ArrayLike | None = ...,
+    rng: np.random.Generator | None = ...,
+    *,
+    return_hits: bool,
+) -> FloatArray | tuple[FloatArray, IntArray]: ...
 
 
 def scan_many(
@@ -76,12 +186,18 @@ def scan_many(
     segments: ArrayLike | None = None,
     exclude: ArrayLike | None = None,
     rng: np.random.Generator | None = None,
-) -> FloatArray:
+    *,
+    return_hits: bool = False,
+) -> FloatArray | tuple[FloatArray, IntArray]:
     """Ranges of K sensors at once, shape ``(K, samples)``.
 
     ``exclude[k]`` is the index of the rectangle that is sensor k's own vehicle (-1 for
     none). Row k equals ``cast_rays`` for sensor k with that rectangle removed; with
     noise, one generator gives the same draws batched or one sensor at a time.
+
+    ``return_hits=True`` returns ``(ranges, hits)``, ``hits`` as in ``cast_rays`` with
+    the indices into the full ``rectangles`` and ``segments`` passed here (row k never
+    names ``exclude[k]``).
     """
     pos = np.asarray(origins, dtype=np.float64).reshape(-1, 2)
     head = np.asarray(headings, dtype=np.float64).reshape(-1)
@@ -93,8 +209,13 @@ def scan_many(
         if excl.shape[0] != pos.shape[0]:
             raise ValueError(f"exclude: expected {pos.shape[0]} values, got {excl.shape[0]}")
     rects, segs = obstacle_arrays(rectangles, segments)
-    raw = _raw_ranges(pos, head, config, rects, segs, excl, use_grid=True)
-    return _finish(raw, config, rng)
+    raw, hits = _raw_ranges(
+        pos, head, config, rects, segs, excl, use_grid=True, with_hits=return_hits
+    )
+    ranges = _finish(raw, config, rng)
+    if hits is None:
+        return ranges
+    return ranges, _no_return(hits, ranges)
 
 
 def apply_noise(
@@ -153,6 +274,12 @@ def _finish(raw: FloatArray, config: LaserConfig, rng: np.random.Generator | Non
     return apply_noise(raw, config, rng)
 
 
+def _no_return(hits: IntArray, ranges: FloatArray) -> IntArray:
+    """Final identities: ``NO_RETURN`` where the reading is ``+inf`` or ``NaN``."""
+    np.putmask(hits, ~(ranges < np.inf), NO_RETURN)  # False for +inf and NaN only
+    return hits
+
+
 def _near_pairs(
     sensors: FloatArray, lo: FloatArray, hi: FloatArray, reach_m: float, use_grid: bool
 ) -> tuple[IntArray, IntArray]:
@@ -209,8 +336,8 @@ def _facing_edges(
     exclude: IntArray | None,
     reach_m: float,
     use_grid: bool,
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Rectangle edges that can be a first hit: (sensor, ax, ay, bx, by) per edge."""
+) -> tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Rectangle edges that can be a first hit: (sensor, rectangle, ax, ay, bx, by)."""
     corners = rectangle_corners(rects)  # front-right, front-left, rear-left, rear-right
     cxs, cys = corners[..., 0], corners[..., 1]
     # bucket by centre (one grid cell each, no duplicates), reach widened to compensate
@@ -234,13 +361,13 @@ def _facing_edges(
     pair, edge = np.nonzero(facing)
     k, r = k[pair], r[pair]
     nxt = (edge + 1) % 4
-    return k, cxs[r, edge], cys[r, edge], cxs[r, nxt], cys[r, nxt]
+    return k, r, cxs[r, edge], cys[r, edge], cxs[r, nxt], cys[r, nxt]
 
 
 def _near_segments(
     sensors: FloatArray, segs: FloatArray, reach_m: float, use_grid: bool
-) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Free segments within reach of each sensor: (sensor, ax, ay, bx, by)."""
+) -> tuple[IntArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Free segments within reach of each sensor: (sensor, segment, ax, ay, bx, by)."""
     lo = np.minimum(segs[:, 0:2], segs[:, 2:4])
     hi = np.maximum(segs[:, 0:2], segs[:, 2:4])
     k, m = _near_pairs(sensors, lo, hi, reach_m, use_grid)
@@ -252,7 +379,7 @@ def _near_segments(
         f = np.clip(((px - ax) * ex + (py - ay) * ey) / length2, 0.0, 1.0)
     f = np.where(length2 > 0.0, f, 0.0)
     near = np.hypot(ax + f * ex - px, ay + f * ey - py) <= reach_m
-    return k[near], ax[near], ay[near], bx[near], by[near]
+    return k[near], m[near], ax[near], ay[near], bx[near], by[near]
 
 
 def _raw_ranges(
@@ -263,20 +390,25 @@ def _raw_ranges(
     segs: FloatArray,
     exclude: IntArray | None,
     use_grid: bool,
-) -> FloatArray:
-    """First-hit distance per ray (inf when nothing is hit), shape (K, samples)."""
+    with_hits: bool = False,
+) -> tuple[FloatArray, IntArray | None]:
+    """First-hit distance per ray (inf when nothing is hit), shape (K, samples), and
+    with ``with_hits`` the obstacle identity per ray (``_UNSET`` where nothing is hit)."""
     n_sensors, n = sensors.shape[0], config.samples
     out = np.full(n_sensors * n, np.inf)
+    hits = np.full(n_sensors * n, _UNSET, dtype=np.intp) if with_hits else None
     reach = config.range_max_m + _CULL_SLACK_M
     parts = []
     if rects.shape[0]:
         parts.append(_facing_edges(sensors, rects, exclude, reach, use_grid))
     if segs.shape[0]:
-        parts.append(_near_segments(sensors, segs, reach, use_grid))
+        k_s, m_s, *ends = _near_segments(sensors, segs, reach, use_grid)
+        parts.append((k_s, rects.shape[0] + m_s, *ends))
     if not parts:
-        return out.reshape(n_sensors, n)
+        return out.reshape(n_sensors, n), _shaped(hits, n_sensors, n)
     k = np.concatenate([p[0] for p in parts])
-    wx_a, wy_a, wx_b, wy_b = (np.concatenate([p[i] for p in parts]) for i in range(1, 5))
+    ids = np.concatenate([p[1] for p in parts]) if with_hits else None
+    wx_a, wy_a, wx_b, wy_b = (np.concatenate([p[i] for p in parts]) for i in range(2, 6))
 
     # endpoints in the sensor frame
     ch, sh = np.cos(headings)[k], np.sin(headings)[k]
@@ -328,10 +460,30 @@ def _raw_ranges(
     has_rows = counts > 0
     run_first, counts, seg = run_first[has_rows], counts[has_rows], seg[has_rows]
 
-    _evaluate_runs(out, config, k[seg], run_first, counts, num[seg], ex[seg], ey[seg])
+    _evaluate_runs(
+        out,
+        config,
+        k[seg],
+        run_first,
+        counts,
+        num[seg],
+        ex[seg],
+        ey[seg],
+        hits,
+        None if ids is None else ids[seg],
+    )
     if touching.any():
-        out.reshape(n_sensors, n)[np.unique(k[touching])] = 0.0
-    return out.reshape(n_sensors, n)
+        on = np.unique(k[touching])
+        if hits is not None and ids is not None:  # every ray: the lowest touched obstacle
+            touched = np.full(n_sensors, _UNSET, dtype=np.intp)
+            np.minimum.at(touched, k[touching], ids[touching])
+            hits.reshape(n_sensors, n)[on] = touched[on, None]
+        out.reshape(n_sensors, n)[on] = 0.0
+    return out.reshape(n_sensors, n), _shaped(hits, n_sensors, n)
+
+
+def _shaped(hits: IntArray | None, n_sensors: int, n: int) -> IntArray | None:
+    return None if hits is None else hits.reshape(n_sensors, n)
 
 
 def _evaluate_runs(
@@ -343,9 +495,13 @@ def _evaluate_runs(
     num: FloatArray,
     ex: FloatArray,
     ey: FloatArray,
+    hits: IntArray | None = None,
+    ids: IntArray | None = None,
 ) -> None:
     """For every run (a segment and the consecutive rays that hit it) write the hit
-    distances into ``out`` (flat, sensor-major), keeping the minimum per ray."""
+    distances into ``out`` (flat, sensor-major), keeping the minimum per ray; with
+    ``hits`` and ``ids`` (the obstacle of each run) also the lowest identity among the
+    runs at that minimum."""
     if counts.size == 0:
         return
     n = config.samples
@@ -357,6 +513,7 @@ def _evaluate_runs(
     ends = np.cumsum(counts)
     starts = ends - counts
     lane = np.arange(min(int(ends[-1]), _ROWS_PER_CHUNK + int(counts.max())), dtype=np.intp)
+    seen = np.zeros(n_sensors, dtype=bool)  # sensors with rows in an earlier chunk
     lo = 0
     while lo < counts.size:
         # runs [lo, hi) hold at most _ROWS_PER_CHUNK rows (or a single larger run)
@@ -369,5 +526,36 @@ def _evaluate_runs(
         denom -= sin_all.take(flat) * np.repeat(ex[lo:hi], c)
         t = np.repeat(num[lo:hi], c)
         t /= denom
-        np.minimum.at(out, flat, t)
+        if hits is None or ids is None:
+            np.minimum.at(out, flat, t)
+        else:
+            # only rays of sensors met in an earlier chunk can already hold an identity
+            old = seen[sensor[lo:hi]]
+            seen[sensor[lo:hi]] = True
+            recheck = np.flatnonzero(np.repeat(old, c)) if old.any() else None
+            _min_with_identity(out, hits, flat, t, np.repeat(ids[lo:hi], c), recheck)
         lo = hi
+
+
+def _min_with_identity(
+    out: FloatArray,
+    hits: IntArray,
+    flat: IntArray,
+    t: FloatArray,
+    ids: IntArray,
+    recheck: IntArray | None,
+) -> None:
+    """``minimum.at(out, flat, t)``, and in ``hits`` the lowest ``ids`` at each minimum.
+
+    ``recheck``: the rows whose ray may hold an identity from an earlier chunk (None:
+    every ray of these rows is still ``_UNSET``). ``ids`` is overwritten.
+    """
+    before = None if recheck is None else out.take(flat[recheck])
+    np.minimum.at(out, flat, t)
+    win = t == out.take(flat)
+    if recheck is not None and before is not None:
+        # a ray whose minimum dropped here forgets the identity of its old minimum
+        dropped = recheck[t[recheck] < before]
+        hits[flat[dropped]] = _UNSET
+    np.putmask(ids, ~win, _UNSET)
+    np.minimum.at(hits, flat, ids)

@@ -8,6 +8,8 @@ back with moveToXY + setPreviousSpeed (planar actuation) or get a speed through 
 from __future__ import annotations
 
 import contextlib
+import itertools
+import math
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -99,6 +101,7 @@ class SumoBackend:
         self.options = options
         self._running = False
         self._geometry: dict[str, tuple[float, float]] = {}
+        self._lane_grid: _LaneGrid | None = None
 
     def start(self) -> None:
         try:
@@ -130,22 +133,41 @@ class SumoBackend:
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
 
-    def snapshot(self) -> WorldSnapshot:
-        """Read the footprint and speed of every vehicle (plain getters: fastest in libsumo)."""
+    def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
+        """The given vehicles and every vehicle whose front bumper is on a lane passing
+        within `radius_m` of one of them (plain getters: the fastest reads in libsumo).
+
+        Lanes near a point come from a grid over the lanes' shapes built once, so the
+        cost follows the traffic around the platoons, not the network's size."""
         veh = libsumo.vehicle
-        ids = tuple(veh.getIDList())
+        wanted = list(dict.fromkeys(vehicle_ids))
+        if not wanted:
+            return _empty_world(self.time_s)
+        centres = np.array([veh.getPosition(vid) for vid in wanted], dtype=np.float64)
+        ids = list(wanted)
+        seen = set(wanted)
+        for lane in self._lanes_near(centres, radius_m):
+            for vid in libsumo.lane.getLastStepVehicleIDs(lane):
+                if vid not in seen:
+                    seen.add(vid)
+                    ids.append(vid)
+        return self._read(tuple(ids))
+
+    def _read(self, ids: tuple[str, ...]) -> WorldSnapshot:
+        veh = libsumo.vehicle
         n = len(ids)
         pos = np.empty((n, 2))
         angle = np.empty(n)
         speed = np.empty(n)
         dims = np.empty((n, 2))
+        geometry = self._geometry
         for i, vid in enumerate(ids):
             pos[i] = veh.getPosition(vid)
             angle[i] = veh.getAngle(vid)
             speed[i] = veh.getSpeed(vid)
-            geom = self._geometry.get(vid)
+            geom = geometry.get(vid)
             if geom is None:
-                geom = self._geometry[vid] = (veh.getLength(vid), veh.getWidth(vid))
+                geom = geometry[vid] = (veh.getLength(vid), veh.getWidth(vid))
             dims[i] = geom
         lanes = tuple(veh.getLaneID(vid) for vid in ids)
         return WorldSnapshot(
@@ -161,6 +183,17 @@ class SumoBackend:
             index={vid: i for i, vid in enumerate(ids)},
         )
 
+    def _lanes_near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
+        """Lanes (internal ones included) with a shape segment within `radius_m` of a
+        point (conservatively: by grid cell), in a fixed order."""
+        grid = self._lane_grid
+        if grid is None:
+            grid = self._lane_grid = _LaneGrid.build(_LANE_CELL_M)
+        return grid.near(points, radius_m)
+
+    def vehicle_count(self) -> int:
+        return int(libsumo.vehicle.getIDCount())
+
     def add_vehicle(
         self,
         vehicle_id: str,
@@ -168,8 +201,8 @@ class SumoBackend:
         type_id: str,
         depart_lane: int,
         depart_pos_m: float,
+        sumo_drives: bool,
         depart_speed_mps: float = 0.0,
-        sumo_drives: bool = False,
     ) -> None:
         """Ask SUMO to insert a platoon vehicle now; it appears once there is room.
 
@@ -256,11 +289,14 @@ class SumoBackend:
         return tuple(libsumo.simulation.getDepartedIDList())
 
     def arrived_ids(self) -> tuple[str, ...]:
-        return tuple(libsumo.simulation.getArrivedIDList())
-
-    def forget(self, vehicle_ids: Sequence[str]) -> None:
-        for vid in vehicle_ids:
+        arrived = tuple(libsumo.simulation.getArrivedIDList())
+        for vid in arrived:
             self._geometry.pop(vid, None)
+        return arrived
+
+    def teleported_ids(self) -> tuple[str, ...]:
+        """Vehicles SUMO started to teleport in the last step."""
+        return tuple(libsumo.simulation.getStartingTeleportIDList())
 
     def move(
         self,
@@ -311,19 +347,25 @@ class SumoBackend:
             # next edge (where that index may lead elsewhere)
             veh.changeLane(vid, lane, self.options.step_s)
 
-    def discard(self, vehicle_id: str) -> None:
-        """Take a platoon vehicle out that can no longer be placed on its route."""
+    def remove(self, vehicle_id: str, arrived: bool) -> None:
+        """Take a platoon vehicle out: at the end of its route as an arrival (tripinfo),
+        or vaporised when SUMO can no longer place it."""
+        reason = libsumo.constants.REMOVE_ARRIVED if arrived else libsumo.constants.REMOVE_VAPORIZED
         try:
-            libsumo.vehicle.remove(vehicle_id, libsumo.constants.REMOVE_VAPORIZED)
+            libsumo.vehicle.remove(vehicle_id, reason)
         except libsumo.TraCIException as exc:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
+        self._geometry.pop(vehicle_id, None)
 
-    def remove(self, vehicle_id: str) -> None:
-        """Take a platoon vehicle out at the end of its route, as an arrival (tripinfo)."""
-        try:
-            libsumo.vehicle.remove(vehicle_id, libsumo.constants.REMOVE_ARRIVED)
-        except libsumo.TraCIException as exc:
-            raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
+    def route_contexts(
+        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
+    ) -> list[tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]]:
+        """For each vehicle: the next light, SUMO's leader within the horizon, the link
+        at the end of its lane (SUMO's view, read after the last step)."""
+        return [
+            (self.next_signal(vid), self.vehicle_ahead(vid, h), self.link_ahead(vid))
+            for vid, h in zip(vehicle_ids, horizons_m, strict=True)
+        ]
 
     def next_signal(self, vehicle_id: str) -> SignalAhead | None:
         tls = libsumo.vehicle.getNextTLS(vehicle_id)
@@ -355,9 +397,6 @@ class SumoBackend:
         gap = float(found[1]) + libsumo.vehicle.getMinGap(vehicle_id)
         return VehicleAhead(other, gap, float(libsumo.vehicle.getSpeed(other)))
 
-    def teleport_count(self) -> int:
-        return int(libsumo.simulation.getStartingTeleportNumber())
-
     def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
         """Collisions SUMO itself detected this step: (collider, victim, type)."""
         for c in libsumo.simulation.getCollisions():
@@ -369,3 +408,48 @@ def resolve_sumo_path(value: str) -> Path:
     if value.startswith("sumo:"):
         return Path(sumo.SUMO_HOME) / value[len("sumo:") :]
     return Path(value)
+
+
+def _empty_world(time_s: float) -> WorldSnapshot:
+    none = np.empty(0)
+    return WorldSnapshot(time_s, (), none, none, none, none, none, none, (), {})
+
+
+#: Cell size of the lane grid [m].
+_LANE_CELL_M = 50.0
+
+
+@dataclass(frozen=True)
+class _LaneGrid:
+    """Which lanes pass through each square cell of the network (shapes widened by half
+    the lane width), for "lanes near these points" without scanning the network."""
+
+    cell_m: float
+    cells: dict[tuple[int, int], tuple[int, ...]]
+    lane_ids: tuple[str, ...]
+
+    @classmethod
+    def build(cls, cell_m: float) -> _LaneGrid:
+        lane_ids = tuple(sorted(libsumo.lane.getIDList()))
+        cells: dict[tuple[int, int], list[int]] = {}
+        for k, lane in enumerate(lane_ids):
+            shape = np.asarray(libsumo.lane.getShape(lane), dtype=np.float64).reshape(-1, 2)
+            pad = 0.5 * float(libsumo.lane.getWidth(lane))
+            for a, b in itertools.pairwise(shape) if len(shape) > 1 else ():
+                lo = np.floor((np.minimum(a, b) - pad) / cell_m).astype(int)
+                hi = np.floor((np.maximum(a, b) + pad) / cell_m).astype(int)
+                for cx in range(lo[0], hi[0] + 1):
+                    for cy in range(lo[1], hi[1] + 1):
+                        cells.setdefault((cx, cy), []).append(k)
+        return cls(cell_m, {c: tuple(sorted(set(v))) for c, v in cells.items()}, lane_ids)
+
+    def near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
+        reach = math.ceil(radius_m / self.cell_m)
+        base = np.floor(points / self.cell_m).astype(np.int64)
+        centres = {(int(x), int(y)) for x, y in base}
+        found: set[int] = set()
+        for cx, cy in centres:
+            for dx in range(-reach, reach + 1):
+                for dy in range(-reach, reach + 1):
+                    found.update(self.cells.get((cx + dx, cy + dy), ()))
+        return [self.lane_ids[k] for k in sorted(found)]

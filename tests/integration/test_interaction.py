@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO, URBAN_GRID_NET
 
@@ -50,13 +50,13 @@ class GapBehindEgo:
     def __init__(self) -> None:
         self.gaps: list[tuple[float, str, float, float, float]] = []
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         w = record.world
         if "ego.0" not in w.index:
             return

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
 
@@ -36,19 +36,17 @@ class ForwardRayVsTruth:
     """Compares the forward ray of each scan with the gap in the world it was taken in."""
 
     def __init__(self) -> None:
-        self.previous_world = None
         self.pairs: list[tuple[float, float]] = []
         self.scan_count = 0
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
-        w = self.previous_world
-        self.previous_world = record.world
+    def on_step(self, record: StepRecord) -> None:
+        w = record.sensed_world
         if w is None or not record.vehicles:
             return
         ego = record.vehicles[0]
@@ -110,13 +108,13 @@ class ScanStamps:
         self.stamps: list[float] = []
         self.ranges: list[np.ndarray] = []
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         for v in record.vehicles:
             if v.scan is not None and (not self.stamps or self.stamps[-1] != v.scan.stamp_s):
                 self.stamps.append(v.scan.stamp_s)

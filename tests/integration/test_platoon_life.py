@@ -7,7 +7,7 @@ import json
 import libsumo
 import pandas as pd
 
-from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
 
@@ -55,13 +55,13 @@ class ForceCutIn:
         self.at_s = at_s
         self.intruder: str | None = None
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         if self.intruder is not None or record.time_s < self.at_s:
             return
         w = record.world

@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
@@ -27,15 +27,15 @@ class TrafficCount:
     def __init__(self) -> None:
         self.max_sumo_vehicles = 0
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         self.max_sumo_vehicles = max(
-            self.max_sumo_vehicles, len(record.world) - len(record.vehicles)
+            self.max_sumo_vehicles, record.sumo_vehicles - len(record.vehicles)
         )
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
 

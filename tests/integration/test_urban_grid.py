@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from platoon_sumo.cosim import CoSimulation, StepRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from platoon_sumo.sumo.network import Network
 from tests.helpers import REPO, URBAN_GRID_NET
@@ -20,17 +20,17 @@ class TrafficAroundEgo:
     def __init__(self) -> None:
         self.max_sumo_vehicles_while_active = 0
 
-    def on_start(self, sim: CoSimulation) -> None:
+    def on_start(self, run: RunContext) -> None:
         pass
 
-    def on_step(self, sim: CoSimulation, record: StepRecord) -> None:
+    def on_step(self, record: StepRecord) -> None:
         if record.vehicles:
-            sumo_vehicles = len(record.world) - len(record.vehicles)
+            sumo_vehicles = record.sumo_vehicles - len(record.vehicles)
             self.max_sumo_vehicles_while_active = max(
                 self.max_sumo_vehicles_while_active, sumo_vehicles
             )
 
-    def on_end(self, sim: CoSimulation) -> None:
+    def on_end(self, outcome: RunOutcome) -> None:
         pass
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from platoon_sumo.events import EVENT_COLUMNS, WALL, Event, EventKind
 from platoon_sumo.metrics import summarise_trajectories
 from platoon_sumo.metrics.stats import PlatoonStats, RunStats, platoon_summary
 
@@ -77,7 +78,7 @@ def test_platoon_summary_string_stability_and_intactness():
     # peak |e|: 1 for p.1, 2 for p.2
     assert p["max_spacing_error_peak_ratio"] == pytest.approx(2.0)
     assert p["intact_share"] == pytest.approx(48 / 50)
-    assert p["splits"] == 1  # intact -> not intact once (k = 10)
+    assert p["splits"] == 0  # splits are events of the loop, not read from the rows
     assert p["min_gap_m"] == pytest.approx(13.0)
     unstable = summarise_trajectories(platoon_table(gain=1.5)).platoon_summaries()[0]
     assert unstable["max_accel_l2_gain"] == pytest.approx(1.5)
@@ -85,35 +86,37 @@ def test_platoon_summary_string_stability_and_intactness():
 
 
 def test_metrics_window_and_event_counts():
-    table = platoon_table()
-    table.loc[(table.vehicle_id == "p.1") & (table.time_s.between(0.05, 0.25)), "supervisor"] = (
-        "emergency"
-    )
-    table.loc[(table.vehicle_id == "p.1") & (table.time_s.between(3.0, 3.15)), "supervisor"] = (
-        "emergency"
-    )
-    stats = summarise_trajectories(table, start_s=2.0)
+    stats = summarise_trajectories(platoon_table(), start_s=2.0)
     s = {v["vehicle_id"]: v for v in stats.vehicle_summaries()}["p.1"]
     assert s["steps"] == 30  # t = 2.0 .. 4.9
-    assert s["emergency_brakings"] == 2  # events count over the whole run
-    stats.add_events([("p.1", "bg7")], ["p.2"])
+    stats.add_events([
+        Event(0.1, EventKind.EMERGENCY_BRAKING, "p.1", platoon_id="p"),
+        Event(3.0, EventKind.EMERGENCY_BRAKING, "p.1", platoon_id="p"),
+        Event(3.2, EventKind.COLLISION, "p.1", "bg7", "p"),
+        Event(3.3, EventKind.WALL_CONTACT, "p.2", WALL, "p"),
+        Event(3.4, EventKind.RED_LIGHT, "p.2", "tls", "p", "link 3 r"),
+        Event(3.5, EventKind.CUT_IN, "p.2", "bg1", "p"),
+        Event(3.6, EventKind.SPLIT, "p.2", "p.1", "p"),
+        Event(3.7, EventKind.SPLIT, "p.2", "p.1", "p"),
+        Event(3.8, EventKind.SUMO_SPEED_CAP, "p.1", platoon_id="p"),
+    ])  # fmt: skip
     s = {v["vehicle_id"]: v for v in stats.vehicle_summaries()}
-    assert s["p.1"]["collisions"] == 1 and s["p.2"]["red_light_violations"] == 1
+    assert s["p.1"]["emergency_brakings"] == 2  # events count over the whole run
+    assert s["p.1"]["collisions"] == 1 and s["p.2"]["collisions"] == 1
+    assert s["p.2"]["red_light_violations"] == 1 and s["p.1"]["red_light_violations"] == 0
+    assert s["p.2"]["cut_ins"] == 1 and s["p.1"]["cut_ins"] == 0
+    (platoon,) = stats.platoon_summaries()
+    assert platoon["splits"] == 2 and platoon["cut_ins"] == 1 and platoon["collisions"] == 2
 
 
-def test_cut_in_counts_a_stranger_between_follower_and_predecessor_once():
-    stats = RunStats()
-    for k in range(6):
-        ahead = ("bg1", 5.0) if 2 <= k <= 4 else ("p.0", 15.0)
-        stats.add_step(k * DT, [
-            dict(vehicle_id="p.0", platoon_id="p", member_index=0, role="leader",
-                 accel_mps2=0.0, speed_mps=10.0),
-            dict(vehicle_id="p.1", platoon_id="p", member_index=1, role="follower",
-                 predecessor_id="p.0", gap_to_predecessor_m=15.0, ahead_id=ahead[0],
-                 ahead_gap_m=ahead[1], accel_mps2=0.0, speed_mps=10.0),
-        ])  # fmt: skip
-    follower = stats.vehicle_summaries()[1]
-    assert follower["cut_ins"] == 1
+def test_offline_summary_reads_the_events_table():
+    events = pd.DataFrame(
+        [(0.5, "cut_in", "p.1", "bg1", "p", ""), (0.7, "split", "p.2", "p.1", "p", "")],
+        columns=list(EVENT_COLUMNS),
+    )
+    stats = summarise_trajectories(platoon_table(), events=events)
+    (platoon,) = stats.platoon_summaries()
+    assert platoon["splits"] == 1 and platoon["cut_ins"] == 1
 
 
 def test_gap_measurement_error_compares_with_the_previous_true_gap():

@@ -52,3 +52,17 @@ def rep117(raw: np.ndarray, range_min: float, range_max: float) -> np.ndarray:
     out[raw > range_max] = np.inf
     out[raw < range_min] = -np.inf
     return out
+
+
+def first_hits_per_obstacle(origin, heading, angles, geoms, length_m: float) -> np.ndarray:
+    """Distance to each boundary alone on each ray, shape ``(len(geoms), len(angles))``
+    (inf where the ray misses that boundary)."""
+    o = np.asarray(origin, float)
+    if not geoms:
+        return np.empty((0, len(angles)))
+    world = heading + np.asarray(angles)
+    ends = np.column_stack((o[0] + length_m * np.cos(world), o[1] + length_m * np.sin(world)))
+    rays = np.array([LineString([tuple(o), tuple(e)]) for e in ends])
+    hits = shapely.intersection(np.array(geoms)[:, None], rays[None, :])
+    dist = shapely.distance(Point(o), hits)  # NaN where the intersection is empty
+    return np.where(np.isnan(dist), np.inf, dist)

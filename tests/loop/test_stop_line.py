@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from platoon_sumo.cosim import crossed_stop_line
+from platoon_sumo.loop.progress import crossed_stop_line
 from platoon_sumo.world import SignalAhead
 
 

@@ -1,0 +1,194 @@
+"""What stages share within a step, and what hooks receive: data, never the loop.
+
+`StepContext` is the only thing stages exchange: the world read after the last SUMO
+step, its footprints, the fleet and this step's events. The rule of which world a
+controller sees is in the order of the stages (`cosim.py`): sensing and decisions use
+the world read after the previous SUMO step; everything after the SUMO step reads the
+new one.
+
+Hooks get a frozen `RunContext` at the start, a `StepRecord` (immutable vehicle
+records, footprints, events) every step and a `RunOutcome` at the end, always, even
+when the run fails.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from platoon_sumo.control import Command, Telemetry
+from platoon_sumo.events import Event, EventKind
+from platoon_sumo.loop.fleet import Fleet, Member
+from platoon_sumo.loop.ports import Backend
+from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
+from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.world import SignalAhead, VehicleAhead, WorldSnapshot
+
+FloatArray = NDArray[np.float64]
+
+
+def empty_world(time_s: float) -> WorldSnapshot:
+    none = np.empty(0)
+    return WorldSnapshot(time_s, (), none, none, none, none, none, none, (), {})
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What a run is, for hooks: fixed for the whole run."""
+
+    plan: RunPlan
+    dt_s: float
+    begin_s: float
+    end_s: float
+    static_segments: FloatArray | None
+
+
+@dataclass
+class StepContext:
+    """The state stages share. Stages append to `events`; `remove` takes a vehicle out."""
+
+    run: RunContext
+    backend: Backend
+    rng: np.random.Generator
+    fleet: Fleet = field(default_factory=Fleet)
+    world: WorldSnapshot = field(default_factory=lambda: empty_world(0.0))
+    footprints: FloatArray = field(default_factory=lambda: np.empty((0, 5)))
+    sensed_world: WorldSnapshot | None = None
+    """The world this step's sensors observed (the previous step's)."""
+    sensed_footprints: FloatArray | None = None
+    events: list[Event] = field(default_factory=list)
+    pending: list[PlatoonPlan] = field(default_factory=list)
+    """Platoons not inserted yet (due ones wait for room on their first lane)."""
+    waiting: dict[str, MemberPlan] = field(default_factory=dict)
+    """Members handed to SUMO that have not departed yet."""
+    sumo_vehicles: int = 0
+    steps: int = 0
+    departed_total: int = 0
+    arrived_total: int = 0
+
+    @property
+    def dt_s(self) -> float:
+        return self.run.dt_s
+
+    def emit(
+        self, kind: EventKind, member: Member | str, other: str = "", detail: str = ""
+    ) -> None:
+        if isinstance(member, Member):
+            vid, pid = member.id, member.platoon_id
+        else:
+            vid, pid = member, ""
+        self.events.append(Event(self.world.time_s, kind, vid, other, pid, detail))
+
+    def remove(self, member: Member, arrived: bool, reason: str = "") -> None:
+        """The one way a platoon vehicle leaves the run before SUMO lets it arrive."""
+        self.backend.remove(member.id, arrived)
+        self.fleet.remove(member.id)
+        if arrived:
+            self.arrived_total += 1
+            self.emit(EventKind.ARRIVED, member)
+        else:
+            self.emit(EventKind.REMOVED, member, detail=reason)
+
+
+@dataclass(frozen=True)
+class VehicleRecord:
+    """One platoon vehicle at the end of a step (immutable)."""
+
+    id: str
+    platoon_id: str
+    index: int
+    role: str
+    x_m: float
+    y_m: float
+    """Reference point (rear axle / wheel axle)."""
+    yaw_rad: float
+    front_x_m: float
+    front_y_m: float
+    speed_mps: float
+    accel_mps2: float
+    length_m: float
+    route_s_m: float
+    lateral_offset_m: float
+    lane_width_m: float
+    command: Command
+    executed: Command
+    supervisor_state: str
+    signal: SignalAhead | None
+    vehicle_ahead: VehicleAhead | None
+    predecessor_id: str | None
+    gap_to_predecessor_m: float | None
+    predecessor_rays: int | None
+    sensors: Mapping[str, Any]
+
+    @property
+    def scan(self) -> LaserScan | None:
+        scan = self.sensors.get("laser")
+        return scan if isinstance(scan, LaserScan) else None
+
+    @property
+    def telemetry(self) -> Telemetry | None:
+        return self.command.telemetry
+
+
+def vehicle_record(m: Member) -> VehicleRecord:
+    fx, fy = m.front_bumper()
+    path = m.path
+    i = min(int(m.route_s_m // path.spacing_m), len(path.lane_width_m) - 1)
+    return VehicleRecord(
+        m.id, m.platoon_id, m.index, m.plan.role, m.x_m, m.y_m, m.yaw_rad, fx, fy,
+        m.speed_mps, m.accel_mps2, m.platoon.config.vehicle.length_m, m.route_s_m,
+        m.lateral_offset_m, float(path.lane_width_m[max(i, 0)]), m.command, m.executed,
+        m.supervisor_state, m.signal, m.vehicle_ahead, m.predecessor_id,
+        m.gap_to_predecessor_m, m.predecessor_rays, dict(m.sensors),
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """What happened in one step; handed to every hook."""
+
+    time_s: float
+    world: WorldSnapshot
+    """Vehicles near the platoons (all platoon vehicles included) after the step."""
+    footprints: FloatArray
+    """Rectangles of `world`'s vehicles, ours from our exact state."""
+    sensed_world: WorldSnapshot | None
+    """The world this step's sensors observed (read after the previous SUMO step)."""
+    sensed_footprints: FloatArray | None
+    vehicles: tuple[VehicleRecord, ...]
+    events: tuple[Event, ...]
+    sumo_vehicles: int
+    """Vehicles in the whole network after the step (platoon vehicles included)."""
+
+    def of_kind(self, *kinds: EventKind) -> list[Event]:
+        return [e for e in self.events if e.kind in kinds]
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """How the run ended: `complete`, `failed` (with the error) or `interrupted`."""
+
+    status: str
+    time_s: float
+    error: str = ""
+
+
+class StepHook(Protocol):
+    """Watches a run (recorders, progress, metrics). Subclass it and override what you
+    need (the others do nothing), or write the three methods yourself."""
+
+    def on_start(self, run: RunContext) -> None:
+        """Before the first step."""
+        return None
+
+    def on_step(self, record: StepRecord) -> None:
+        """After every step."""
+        return None
+
+    def on_end(self, outcome: RunOutcome) -> None:
+        """After the last step, also when the run failed or was interrupted."""
+        return None

@@ -1,0 +1,57 @@
+"""Decisions: each member's observation, its controller (batched per class) and the
+supervisor, which may only lower the speed."""
+
+from __future__ import annotations
+
+from platoon_sumo.control import Observation
+from platoon_sumo.control.base import step_batch
+from platoon_sumo.events import EventKind
+from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.fleet import Member
+from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.supervisor import EMERGENCY, supervise
+
+
+def observation(m: Member, time_s: float, dt_s: float) -> Observation:
+    """What a controller sees: odometry, its route, SUMO's view of the road ahead (read
+    after the previous step) and its sensors' latest messages."""
+    cfg = m.platoon.config.vehicle
+    scan = m.sensors.get("laser")
+    return Observation(
+        time_s=time_s,
+        dt_s=dt_s,
+        vehicle_id=m.id,
+        role=m.plan.role,
+        x_m=m.x_m,
+        y_m=m.y_m,
+        yaw_rad=m.yaw_rad,
+        speed_mps=m.speed_mps,
+        front_offset_m=cfg.front_offset_m,
+        length_m=cfg.length_m,
+        width_m=cfg.width_m,
+        limits=m.platoon.limits,
+        path=m.path,
+        lane_offset_m=m.lateral_offset_m if m.actuator.sumo_drives else 0.0,
+        signal=m.signal,
+        link_ahead=m.link_ahead,
+        lane_change=m.lane_change,
+        vehicle_ahead=m.vehicle_ahead,
+        scan=scan if isinstance(scan, LaserScan) else None,
+        sensors=dict(m.sensors),
+    )
+
+
+class Decide:
+    def __call__(self, ctx: StepContext) -> None:
+        members = list(ctx.fleet)
+        if not members:
+            return
+        time_s = ctx.world.time_s
+        observations = [observation(m, time_s, ctx.dt_s) for m in members]
+        commands = step_batch([m.controller for m in members], observations)
+        for m, obs, command in zip(members, observations, commands, strict=True):
+            m.command = command
+            m.executed, enforced = supervise(m.platoon.config.supervisor, obs, command)
+            if enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
+                ctx.emit(EventKind.EMERGENCY_BRAKING, m)
+            m.supervisor_state = enforced

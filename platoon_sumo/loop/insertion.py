@@ -1,0 +1,103 @@
+"""Platoons enter the network whole; SUMO's arrivals and departures are booked."""
+
+from __future__ import annotations
+
+from platoon_sumo.actuation import ACTUATORS
+from platoon_sumo.events import EventKind
+from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.fleet import Member
+from platoon_sumo.path import RoutePath
+from platoon_sumo.scenario import PlatoonPlan
+
+#: Room kept free behind the last member when a platoon is inserted [m] (the rear
+#: member's follower keeps its minGap).
+INSERT_ROOM_BEHIND_M = 10.0
+
+
+class InsertDue:
+    """Hand each due platoon to SUMO as a whole once its first lane is free from
+    `INSERT_ROOM_BEHIND_M` behind its last member to `spacing_m` ahead of its leader (a
+    platoon never starts scattered behind other traffic); a platoon still waiting does
+    not hold back later ones."""
+
+    def __call__(self, ctx: StepContext) -> None:
+        time_s = ctx.world.time_s
+        for platoon in [p for p in ctx.pending if p.config.depart_s <= time_s + 1e-9]:
+            cfg = platoon.config
+            lane = f"{platoon.edges[0]}_{platoon.depart_lane}"
+            front = platoon.members[0].depart_pos_m
+            rear = platoon.members[-1].depart_pos_m - cfg.vehicle.length_m
+            if not ctx.backend.lane_is_free(
+                lane, rear - INSERT_ROOM_BEHIND_M, front + cfg.spacing_m
+            ):
+                continue
+            ctx.pending.remove(platoon)
+            drives = ACTUATORS.get(cfg.actuation).sumo_drives
+            for member in platoon.members:
+                ctx.backend.add_vehicle(
+                    member.vehicle_id, platoon.edges, platoon.type_id, platoon.depart_lane,
+                    member.depart_pos_m, sumo_drives=drives,
+                )  # fmt: skip
+                ctx.waiting[member.vehicle_id] = member
+
+
+class Arrivals:
+    """Vehicles SUMO let arrive leave the fleet."""
+
+    def __call__(self, ctx: StepContext) -> None:
+        arrived = ctx.backend.arrived_ids()
+        ctx.arrived_total += len(arrived)
+        for vid in arrived:
+            member = ctx.fleet.remove(vid)
+            if member is not None:
+                ctx.emit(EventKind.ARRIVED, member)
+
+
+class Departures:
+    """Members SUMO inserted join the fleet: pose from SUMO at speed 0, a fresh
+    controller, the route path (shared per route), the first projection."""
+
+    def __init__(self) -> None:
+        self._paths: dict[tuple[str, ...], RoutePath] = {}
+
+    def __call__(self, ctx: StepContext) -> None:
+        departed = ctx.backend.departed_ids()
+        ctx.departed_total += len(departed)
+        world = ctx.world
+        new: list[Member] = []
+        for vid in departed:
+            plan = ctx.waiting.pop(vid, None)
+            if plan is None:
+                continue
+            platoon = next(p for p in ctx.run.plan.platoons if p.config.id == plan.platoon_id)
+            controller = plan.controller_cls(plan.controller_params)
+            controller.reset()
+            i = world.index[vid]
+            member = Member(
+                plan, platoon, controller, ACTUATORS.get(platoon.config.actuation)(),
+                self._path_for(ctx, platoon), 0.0, 0.0, 0.0,
+            )  # fmt: skip
+            member.set_front_pose(
+                float(world.front_x_m[i]), float(world.front_y_m[i]), float(world.yaw_rad[i])
+            )
+            fx, fy = member.front_bumper()
+            point = member.path.project(fx, fy)
+            member.route_s_m, member.lateral_offset_m = point.s_m, point.lateral_offset_m
+            ctx.fleet.add(member)
+            ctx.emit(EventKind.DEPARTED, member)
+            new.append(member)
+        if new:  # the light ahead at departure: the red-light check compares with it
+            contexts = ctx.backend.route_contexts([m.id for m in new], [0.0] * len(new))
+            for member, (signal, _, _) in zip(new, contexts, strict=True):
+                member.signal = signal
+
+    def _path_for(self, ctx: StepContext, platoon: PlatoonPlan) -> RoutePath:
+        cfg = platoon.config
+        key = (*platoon.edges, str(platoon.depart_lane), str(cfg.vehicle.length_m))
+        if key not in self._paths:
+            spacing = min(max(cfg.vehicle.length_m / 8, 0.02), 0.5)
+            self._paths[key] = ctx.run.plan.network.route_path(
+                platoon.edges, spacing_m=spacing, first_lane=platoon.depart_lane,
+                vclass=cfg.vehicle.vclass,
+            )  # fmt: skip
+        return self._paths[key]

@@ -1,0 +1,83 @@
+"""What the loop asks of SUMO: the `Backend` protocol.
+
+`platoon_sumo.sumo.backend.SumoBackend` is the real one (the only libsumo user); tests of
+single stages use a fake. Every call is batched over vehicles where SUMO allows it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
+
+FloatArray = NDArray[np.float64]
+
+#: (vehicle id, front position along the lane [m], speed [m/s], length [m])
+LaneOccupant = tuple[str, float, float, float]
+#: The route context of one vehicle: next light, SUMO's leader, the link ahead.
+RouteContext = tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]
+
+
+class Backend(Protocol):
+    @property
+    def time_s(self) -> float: ...
+
+    def step(self) -> None: ...
+
+    def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
+        """The given vehicles and every vehicle on a lane within `radius_m` of one of
+        them (positions are front bumpers: a footprint reaches a length behind)."""
+        ...
+
+    def vehicle_count(self) -> int: ...
+
+    def add_vehicle(
+        self,
+        vehicle_id: str,
+        edges: Sequence[str],
+        type_id: str,
+        depart_lane: int,
+        depart_pos_m: float,
+        sumo_drives: bool,
+    ) -> None: ...
+
+    def lane_is_free(self, lane_id: str, from_m: float, to_m: float) -> bool: ...
+
+    def lane_occupants(self, lane_id: str) -> list[LaneOccupant]: ...
+
+    def lane_shape(self, lane_id: str) -> FloatArray: ...
+
+    def lane_width(self, lane_id: str) -> float: ...
+
+    def departed_ids(self) -> tuple[str, ...]: ...
+
+    def arrived_ids(self) -> tuple[str, ...]: ...
+
+    def teleported_ids(self) -> tuple[str, ...]: ...
+
+    def sumo_collisions(self) -> Iterable[tuple[str, str, str]]: ...
+
+    def route_contexts(
+        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
+    ) -> list[RouteContext]: ...
+
+    def move(
+        self,
+        vehicle_ids: Sequence[str],
+        front_x_m: FloatArray,
+        front_y_m: FloatArray,
+        yaw_rad: FloatArray,
+        speed_mps: FloatArray,
+    ) -> dict[str, str]: ...
+
+    def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
+
+    def request_lane_changes(self, requests: dict[str, int]) -> None: ...
+
+    def remove(self, vehicle_id: str, arrived: bool) -> None:
+        """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""
+        ...

@@ -1,0 +1,63 @@
+"""Route progress: where each member is on its route, what SUMO sees ahead of it (next
+light, leader, link), red-light violations, and removal at the route's end."""
+
+from __future__ import annotations
+
+from platoon_sumo.events import EventKind
+from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.fleet import Member
+from platoon_sumo.world import SignalAhead
+
+#: A member whose front bumper is this close to its path's end has arrived [m].
+ARRIVAL_TOLERANCE_M = 0.05
+
+
+def crossed_stop_line(
+    previous: SignalAhead, current: SignalAhead | None, travelled_m: float
+) -> bool:
+    """Did the vehicle drive over `previous`'s stop line during the last step?
+
+    The signal ahead also changes when a lane change puts another link of the same light
+    ahead: only a line within the distance just travelled counts as passed."""
+    same = current is not None and (current.tls_id, current.link_index) == (
+        previous.tls_id,
+        previous.link_index,
+    )
+    return not same and previous.distance_m <= travelled_m + 0.25
+
+
+def ahead_horizon_m(m: Member) -> float:
+    """Look as far ahead as a full comfortable stop from top speed needs, and more."""
+    vehicle = m.platoon.config.vehicle
+    return max(20.0 * vehicle.length_m, vehicle.max_speed_mps**2 / vehicle.max_decel_mps2 * 2)
+
+
+class RouteProgress:
+    def __call__(self, ctx: StepContext) -> None:
+        members = list(ctx.fleet)
+        if not members:
+            return
+        travelled: list[float] = []
+        for m in members:
+            fx, fy = m.front_bumper()
+            window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
+            point = m.path.project(fx, fy, s_hint_m=m.route_s_m, window_m=window)
+            travelled.append(max(point.s_m - m.route_s_m, 0.0))
+            m.route_s_m, m.lateral_offset_m = point.s_m, point.lateral_offset_m
+        contexts = ctx.backend.route_contexts(
+            [m.id for m in members], [ahead_horizon_m(m) for m in members]
+        )
+        for m, travelled_m, (signal, ahead, link) in zip(members, travelled, contexts, strict=True):
+            previous, m.signal = m.signal, signal
+            m.vehicle_ahead, m.link_ahead = ahead, link
+            if (
+                previous is not None
+                and previous.state in ("r", "u")
+                and crossed_stop_line(previous, signal, travelled_m)
+            ):
+                ctx.emit(
+                    EventKind.RED_LIGHT, m, other=previous.tls_id,
+                    detail=f"link {previous.link_index} {previous.state}",
+                )  # fmt: skip
+            if m.route_s_m >= m.path.length_m - ARRIVAL_TOLERANCE_M:
+                ctx.remove(m, arrived=True)

@@ -1,0 +1,107 @@
+"""Ground truth about the platoons after the step: predecessors and true gaps, the
+platoon's cohesion (splits, re-formations, cut-ins) and contacts. Metrics only: no
+controller reads any of it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from platoon_sumo.events import WALL, EventKind, Onset
+from platoon_sumo.geometry import overlapping_pairs, rectangles_crossing_segments
+from platoon_sumo.loop.context import StepContext
+from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids
+
+
+class Predecessors:
+    """Each member's predecessor (the nearest member ahead still in the network) and
+    the bumper gap to it, measured on the footprints."""
+
+    def __call__(self, ctx: StepContext) -> None:
+        members = list(ctx.fleet)
+        predecessors = predecessor_ids(members)
+        index, rects = ctx.world.index, ctx.footprints
+        for m in members:
+            pred = predecessors[m.id]
+            m.predecessor_id = pred
+            m.gap_to_predecessor_m = None
+            if pred is not None and pred in index and m.id in index:
+                m.gap_to_predecessor_m = bumper_gap_m(rects[index[m.id]], rects[index[pred]])
+
+
+class Cohesion:
+    """Splits, re-formations and cut-ins from what each follower perceives: with a laser,
+    linked while its last scan had rays on the predecessor; without, while the true gap
+    is at most `split_gap_m`."""
+
+    def __init__(self, hold_s: float = 1.0) -> None:
+        self.monitor = LinkMonitor(hold_s)
+        self._linked: dict[str, bool] = {}
+
+    def __call__(self, ctx: StepContext) -> None:
+        time_s = ctx.world.time_s
+        present = set()
+        for m in ctx.fleet:
+            present.add(m.id)
+            pred = m.predecessor_id
+            if pred is None:
+                continue
+            if m.plan.laser is not None:
+                if m.predecessor_rays is not None:  # keep the last verdict between scans
+                    self._linked[m.id] = m.predecessor_rays > 0
+            else:
+                gap = m.gap_to_predecessor_m
+                self._linked[m.id] = gap is not None and gap <= m.platoon.config.split_gap_m
+            ahead = m.vehicle_ahead
+            intruder = None
+            if (
+                ahead is not None
+                and not ahead.vehicle_id.startswith(m.platoon_id + ".")
+                and (m.gap_to_predecessor_m is None or ahead.gap_m < m.gap_to_predecessor_m)
+            ):
+                intruder = ahead.vehicle_id
+            for e in self.monitor.observe(
+                time_s, m.platoon_id, m.id, pred, self._linked.get(m.id, False), intruder
+            ):
+                kind = {"split": EventKind.SPLIT, "reformation": EventKind.REFORMATION}.get(
+                    e.kind, EventKind.CUT_IN
+                )
+                ctx.emit(kind, m, other=e.other_id)
+        for gone in set(self._linked) - present:  # bounded memory: forget who left
+            del self._linked[gone]
+            self.monitor.forget(gone)
+
+
+class SafetyCheck:
+    """Footprint overlaps of pairs involving a platoon vehicle (SUMO's own check is per
+    lane) on roads that can touch (not a bridge over the other), and platoon vehicles
+    crossing walls; each contact counts once, when it begins."""
+
+    def __init__(self) -> None:
+        self._contacts: Onset[tuple[str, str]] = Onset()
+
+    def __call__(self, ctx: StepContext) -> None:
+        world, rects = ctx.world, ctx.footprints
+        subjects = np.array([world.index[m.id] for m in ctx.fleet if m.id in world.index])
+        if not len(subjects):
+            self._contacts.update(())
+            return
+        pairs = overlapping_pairs(rects, subjects)
+        network = ctx.run.plan.network
+        now = {
+            (a, b) if a < b else (b, a)
+            for a, b in ((world.ids[i], world.ids[j]) for i, j in pairs)
+            if network.same_level(world.lane_ids[world.index[a]], world.lane_ids[world.index[b]])
+        }
+        walls = ctx.run.static_segments
+        if walls is not None:
+            hits = rectangles_crossing_segments(rects[subjects], walls)
+            now |= {(world.ids[subjects[i]], WALL) for i in np.unique(hits[:, 0])}
+        for a, b in self._contacts.update(now):
+            if b == WALL:
+                ctx.emit(EventKind.WALL_CONTACT, ctx.fleet.get(a) or a, other=WALL)
+                continue
+            first = ctx.fleet.get(a)
+            if first is not None:
+                ctx.emit(EventKind.COLLISION, first, other=b)
+            else:
+                ctx.emit(EventKind.COLLISION, ctx.fleet.get(b) or b, other=a)

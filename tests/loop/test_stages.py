@@ -1,0 +1,317 @@
+"""Each stage of the loop alone, on the fake backend (tests/fakes.py): the data it reads
+from the step context and what it writes back, events included."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from platoon_sumo.control import Command
+from platoon_sumo.cosim import CoSimulation
+from platoon_sumo.errors import PluginError
+from platoon_sumo.events import EventKind
+from platoon_sumo.loop.actuate import Actuate, ReadBack
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepHook
+from platoon_sumo.loop.decision import Decide
+from platoon_sumo.loop.insertion import Departures, InsertDue
+from platoon_sumo.loop.observe import Footprints, ObserveWorld, SumoReports
+from platoon_sumo.loop.progress import RouteProgress
+from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
+from platoon_sumo.loop.sensing import Sense
+from platoon_sumo.runner import load_plan
+from platoon_sumo.scenario import RunPlan
+from tests.fakes import LANE_Y_M, FakeBackend
+from tests.helpers import REPO
+
+PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
+
+
+@dataclass(frozen=True)
+class NoParams:
+    pass
+
+
+class Scripted:
+    """A controller whose command is whatever `Scripted.speed` says (or raises)."""
+
+    Params = NoParams
+    speed: Any = 5.0
+
+    def __init__(self, params: Any = None) -> None:
+        pass
+
+    def reset(self) -> None:
+        pass
+
+    def step(self, observation: Any) -> Any:
+        if isinstance(Scripted.speed, Exception):
+            raise Scripted.speed
+        return Command(Scripted.speed) if isinstance(Scripted.speed, float) else Scripted.speed
+
+
+SCRIPTED = {"type": "tests.loop.test_stages:Scripted"}
+
+
+def plan(write_scenario, actuation: str = "lane", members: int = 2, **extra: Any) -> RunPlan:
+    data = {
+        "simulation": {"step_s": 0.1, "end_s": 20.0, "lateral_resolution_m": 0.8},
+        "network": {"net_file": str(REPO / "networks" / "straight" / "straight.net.xml")},
+        "platoons": [{
+            "id": "p", "route": {"edges": ["WE"]}, "members": members, "spacing_m": 5.0,
+            "depart_pos_m": 100.0, "actuation": actuation,
+            "vehicle": {"model": "bicycle", "length_m": 4.5, "width_m": 1.8},
+            "leader": {"type": "route_following"}, "follower": {"type": "route_following"},
+            **extra,
+        }],
+    }  # fmt: skip
+    return load_plan(write_scenario(data))
+
+
+def context(run_plan: RunPlan, backend: FakeBackend) -> StepContext:
+    sim = run_plan.scenario.simulation
+    run = RunContext(run_plan, sim.step_s, sim.begin_s, sim.end_s, None)
+    return StepContext(run, backend, np.random.default_rng(0), pending=list(run_plan.platoons))
+
+
+def departed(ctx: StepContext, backend: FakeBackend) -> None:
+    """Insert the platoon and let it depart (one fake SUMO step)."""
+    InsertDue()(ctx)
+    backend.step()
+    ObserveWorld()(ctx)
+    Departures()(ctx)
+    Footprints()(ctx)
+
+
+def test_insert_waits_for_room_on_the_first_lane_then_hands_over_the_whole_platoon(
+    write_scenario,
+):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=3), backend)
+    backend.add_human("h", 95.0, 0.0)  # inside the platoon's depart stretch
+    InsertDue()(ctx)
+    assert backend.queued == [] and len(ctx.pending) == 1
+    backend.vehicles.pop("h")
+    InsertDue()(ctx)
+    assert [vid for vid, _ in backend.queued] == ["p.0", "p.1", "p.2"]
+    assert all(v.sumo_drives for _, v in backend.queued)  # lane actuation: SUMO drives
+    assert ctx.pending == [] and set(ctx.waiting) == {"p.0", "p.1", "p.2"}
+
+
+def test_departures_build_members_from_sumo_poses_and_emit_departed(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    departed(ctx, backend)
+    assert ctx.fleet.ids() == ["p.0", "p.1"]
+    leader = ctx.fleet.get("p.0")
+    assert leader is not None
+    assert leader.front_bumper() == pytest.approx((100.0, LANE_Y_M))
+    assert leader.route_s_m == pytest.approx(100.0, abs=0.01)
+    assert [e.kind for e in ctx.events] == [EventKind.DEPARTED, EventKind.DEPARTED]
+    assert ctx.waiting == {}
+
+
+def test_world_holds_platoon_vehicles_and_their_neighbours_only(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    backend.add_human("near", 120.0, 10.0)  # within 30 m: could touch
+    backend.add_human("far", 900.0, 10.0)
+    departed(ctx, backend)
+    assert set(ctx.world.ids) == {"p.0", "p.1", "near"}
+    assert ctx.sumo_vehicles == 4
+    assert ctx.footprints.shape == (3, 5)
+
+
+def test_decide_supervises_and_counts_an_emergency_once_per_episode(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1, leader=SCRIPTED), backend)
+    backend.add_human("stopped", 110.0, 0.0)  # 5.5 m ahead of the leader's bumper
+    departed(ctx, backend)
+    RouteProgress()(ctx)
+    Scripted.speed = 15.0
+    for _ in range(3):
+        ctx.events = []
+        Decide()(ctx)
+    (m,) = list(ctx.fleet)
+    assert m.command.speed_mps == 15.0 and m.executed.speed_mps < 15.0
+    assert m.supervisor_state == "emergency"
+    ctx.events = []
+    Decide()(ctx)
+    assert ctx.events == []  # the same episode: counted when it began
+
+
+def test_a_failing_controller_is_named_with_its_vehicle_and_time(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1, leader=SCRIPTED), backend)
+    departed(ctx, backend)
+    Scripted.speed = ValueError("boom")
+    with pytest.raises(PluginError, match=r"Scripted of vehicle 'p.0' failed at t=0.10 s.*boom"):
+        Decide()(ctx)
+    Scripted.speed = "not a command"
+    with pytest.raises(PluginError, match="returned str"):
+        Decide()(ctx)
+    Scripted.speed = 5.0
+
+
+def test_lane_actuation_hands_speeds_and_lane_requests_to_sumo(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    departed(ctx, backend)
+    for m in ctx.fleet:
+        m.executed = Command(7.0, lane_change=1 if m.index else 0)
+    Actuate()(ctx)
+    assert backend.speed_commands == {"p.0": 7.0, "p.1": 7.0}
+    assert backend.lane_requests == {"p.1": 1}
+
+
+def test_read_back_names_sumo_capping_the_speed_once_per_episode(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)
+    (m,) = list(ctx.fleet)
+    m.executed = Command(10.0)
+    for _ in range(3):  # SUMO keeps it standing (its safety layer)
+        backend.speed_commands["p.0"] = 0.0
+        backend.step()
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+    assert m.supervisor_state == "sumo"
+    assert [e.kind for e in ctx.events].count(EventKind.SUMO_SPEED_CAP) == 1
+
+
+def test_planar_actuation_moves_the_model_and_takes_out_what_sumo_cannot_place(
+    write_scenario,
+):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, actuation="planar"), backend)
+    departed(ctx, backend)
+    follower = ctx.fleet.get("p.1")
+    assert follower is not None
+    follower.y_m += 50.0  # far off the road: SUMO cannot place it
+    for m in ctx.fleet:
+        m.executed = Command(2.0)
+    Actuate()(ctx)
+    leader = backend.vehicles["p.0"]
+    limits = ctx.run.plan.platoons[0].limits
+    assert leader.speed_mps == pytest.approx(min(2.0, 0.1 * limits.max_accel_mps2))
+    assert backend.removed == [("p.1", False)] and "p.1" not in ctx.fleet
+    (removed,) = [e for e in ctx.events if e.kind is EventKind.REMOVED]
+    assert removed.vehicle_id == "p.1" and "off the road" in removed.detail
+
+
+def test_route_progress_removes_a_member_at_its_route_end_as_arrived(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)
+    backend.vehicles["p.0"].x_m = 3000.0
+    ctx.fleet.get("p.0").route_s_m = 2995.0  # type: ignore[union-attr]  # it drove there
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    RouteProgress()(ctx)
+    assert backend.removed == [("p.0", True)] and len(ctx.fleet) == 0
+    assert ctx.events[-1].kind is EventKind.ARRIVED and ctx.arrived_total == 1
+
+
+def test_safety_check_counts_a_contact_once_when_it_begins(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    backend.add_human("h", 200.0, 0.0)
+    departed(ctx, backend)
+    check = SafetyCheck()
+    kinds = []
+    for front in (125.0, 103.0, 103.5, 125.0, 103.0):  # apart, touch, still, apart, touch
+        backend.vehicles["h"].x_m = front
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        ctx.events = []
+        check(ctx)
+        kinds.append([(e.kind, e.vehicle_id, e.other_id) for e in ctx.events])
+    hit = [(EventKind.COLLISION, "p.0", "h")]
+    assert kinds == [[], hit, [], [], hit]
+
+
+def test_sumo_reports_count_each_collision_once(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    reports = SumoReports()
+    seen = []
+    for active in ([("a", "b", "collision")], [("a", "b", "collision")], [], [("a", "b", "x")]):
+        backend.collisions = active
+        ctx.events = []
+        reports(ctx)
+        seen.append(len(ctx.events))
+    assert seen == [1, 0, 0, 1]
+
+
+def test_cohesion_counts_a_split_after_the_hold_and_a_reformation(write_scenario):
+    backend = FakeBackend()
+    laser = {"type": "route_following", "sensor": {"preset": "utm30lx"}}
+    ctx = context(plan(write_scenario, follower=laser), backend)
+    departed(ctx, backend)
+    Predecessors()(ctx)
+    cohesion = Cohesion(hold_s=1.0)
+    follower = ctx.fleet.get("p.1")
+    assert follower is not None and follower.predecessor_id == "p.0"
+    kinds = []
+    for k in range(60):
+        backend.time = round(backend.time + 0.1, 9)
+        ObserveWorld()(ctx)
+        follower.predecessor_rays = 0 if 15 <= k < 35 else 50
+        ctx.events = []
+        cohesion(ctx)
+        kinds += [e.kind for e in ctx.events]
+    assert kinds == [EventKind.SPLIT, EventKind.REFORMATION]
+
+
+def test_a_sensor_plug_in_needs_no_loop_edit(write_scenario, monkeypatch):
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    sensors = [{"type": "perfect_radar:PerfectRadar", "name": "radar", "params": {"rate_hz": 5}}]
+    backend = FakeBackend()
+    role = {"type": "route_following", "sensors": sensors}
+    ctx = context(plan(write_scenario, follower=role), backend)
+    departed(ctx, backend)
+    RouteProgress()(ctx)
+    sense = Sense()
+    readings = []
+    for _ in range(4):
+        sense(ctx)
+        follower = ctx.fleet.get("p.1")
+        assert follower is not None
+        readings.append(follower.sensors.get("radar"))
+        backend.time = round(backend.time + 0.1, 9)
+        ObserveWorld()(ctx)
+    assert readings[0].gap_m == pytest.approx(5.0)  # the true bumper gap to p.0
+    assert readings[1] is readings[0] and readings[2] is not readings[0]  # 5 Hz, 10 Hz steps
+    assert "radar" not in ctx.fleet.get("p.0").sensors  # type: ignore[union-attr]
+
+
+class Collector(StepHook):
+    def __init__(self) -> None:
+        self.steps = 0
+        self.outcome: RunOutcome | None = None
+
+    def on_step(self, record: Any) -> None:
+        self.steps += 1
+
+    def on_end(self, outcome: RunOutcome) -> None:
+        self.outcome = outcome
+
+
+def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
+    backend = FakeBackend()
+    run_plan = plan(write_scenario, members=1, leader=SCRIPTED)
+    hook = Collector()
+    sim = CoSimulation(run_plan, backend, [hook])
+    Scripted.speed = 3.0
+    sim.step(), sim.step(), sim.step()
+    Scripted.speed = RuntimeError("late failure")
+    with pytest.raises(PluginError):
+        sim.run()
+    Scripted.speed = 5.0
+    assert hook.outcome is not None and hook.outcome.status == "failed"
+    assert "late failure" in hook.outcome.error
+    assert hook.steps == 3  # the failing step's record never reached the hooks
