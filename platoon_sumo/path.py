@@ -1,16 +1,23 @@
-"""A route's centre-line as an arc-length parametrised polyline (pure numpy).
+"""A route's centre-line as an arc-length parametrised polyline.
 
 Controllers track it, the loop measures progress and lateral offset on it. Points are
-resampled at a fixed spacing so that look-ups are index arithmetic, not searches.
+resampled at a fixed spacing so that look-ups are index arithmetic, not searches. The
+per-step look-ups (``project``, ``point_at``, ``heading_at``, ``lane_step``) are scalar
+arithmetic on cached Python lists and a compiled projection kernel
+(``platoon_sumo.kernels.path``): a few microseconds a call.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
+
+from platoon_sumo.kernels.path import project_kernel
 
 FloatArray = NDArray[np.float64]
 
@@ -102,13 +109,48 @@ class RoutePath:
             lane_changes=tuple(lane_changes),
         )
 
-    @property
+    # Derived values are cached on first use (the path never changes; cached_property
+    # writes the instance __dict__, which a frozen dataclass allows).
+
+    @cached_property
     def length_m(self) -> float:
         return float((len(self.xy_m) - 2) * self.spacing_m + self._last_step)
 
-    @property
+    @cached_property
     def _last_step(self) -> float:
         return float(np.hypot(*(self.xy_m[-1] - self.xy_m[-2])))
+
+    @cached_property
+    def _xy(self) -> list[list[float]]:
+        """``xy_m`` as nested lists: scalar look-ups without numpy indexing."""
+        return self.xy_m.tolist()
+
+    @cached_property
+    def _xy_c(self) -> FloatArray:
+        """``xy_m`` as a C-contiguous float64 array for the projection kernel."""
+        return np.ascontiguousarray(self.xy_m, dtype=np.float64)
+
+    @cached_property
+    def _lane_width_c(self) -> FloatArray:
+        return np.ascontiguousarray(self.lane_width_m, dtype=np.float64)
+
+    @cached_property
+    def _lane_width(self) -> list[float]:
+        return [float(w) for w in self.lane_width_m]
+
+    @cached_property
+    def _lane_of_point(self) -> list[str]:
+        return [self.lane_ids[int(i)] for i in self.lane_index]
+
+    @cached_property
+    def _lane_key_of_point(self) -> list[tuple[str, ...] | None]:
+        """(edge, lane index as text) of the lane under each point; None in junctions."""
+        keys = [None if id_.startswith(":") else tuple(id_.rsplit("_", 1)) for id_ in self.lane_ids]
+        return [keys[int(i)] for i in self.lane_index]
+
+    @cached_property
+    def _lane_change_spans(self) -> list[tuple[float, float]]:
+        return [(c.begin_s_m, c.end_s_m) for c in self.lane_changes]
 
     @property
     def s_m(self) -> FloatArray:
@@ -117,39 +159,50 @@ class RoutePath:
         return s
 
     def _index(self, s_m: float) -> int:
-        return int(np.clip(s_m // self.spacing_m, 0, len(self.xy_m) - 2))
+        # min/max like np.clip (a NaN stays NaN and int() refuses it)
+        return int(min(max(s_m // self.spacing_m, 0), len(self.xy_m) - 2))
 
     def point_at(self, s_m: float) -> tuple[float, float]:
         """Position at arc length s (clamped to the path)."""
-        s = float(np.clip(s_m, 0.0, self.length_m))
-        i = self._index(s)
-        step = self.spacing_m if i < len(self.xy_m) - 2 else self._last_step
-        t = (s - i * self.spacing_m) / step if step > 0 else 0.0
-        p = self.xy_m[i] + (self.xy_m[i + 1] - self.xy_m[i]) * min(max(t, 0.0), 1.0)
-        return float(p[0]), float(p[1])
+        s = float(min(max(s_m, 0.0), self.length_m))
+        spacing, last = self.spacing_m, len(self.xy_m) - 2
+        i = int(min(s // spacing, last))  # s >= 0 (NaN: int() refuses it, as before)
+        step = spacing if i < last else self._last_step
+        t = (s - i * spacing) / step if step > 0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        xy = self._xy
+        (x0, y0), (x1, y1) = xy[i], xy[i + 1]
+        return x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
 
     def heading_at(self, s_m: float) -> float:
         """Direction of travel at s [rad, counter-clockwise from +x]."""
-        i = self._index(float(np.clip(s_m, 0.0, self.length_m)))
-        d = self.xy_m[i + 1] - self.xy_m[i]
-        return float(np.arctan2(d[1], d[0]))
+        i = self._index(float(min(max(s_m, 0.0), self.length_m)))
+        xy = self._xy
+        (x0, y0), (x1, y1) = xy[i], xy[i + 1]
+        return math.atan2(y1 - y0, x1 - x0)
+
+    def lane_width_near(self, s_m: float) -> float:
+        """Width of the lane under the path point at or before arc length s (clamped)."""
+        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
+        return self._lane_width[i]
 
     def lane_at(self, s_m: float) -> str:
         i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
-        return self.lane_ids[int(self.lane_index[i])]
+        return self._lane_of_point[i]
 
     def lane_beside(self, s_m: float, lateral_offset_m: float) -> tuple[str, int] | None:
         """(edge, lane index) of the lane `lateral_offset_m` (left +) beside the path at
         `s_m`; None in junctions and lane-change stretches, where the path lies between
         lanes."""
-        if any(c.begin_s_m <= s_m <= c.end_s_m for c in self.lane_changes):
+        for begin, end in self._lane_change_spans:
+            if begin <= s_m <= end:
+                return None
+        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
+        key = self._lane_key_of_point[i]
+        if key is None:
             return None
-        lane = self.lane_at(s_m)
-        if lane.startswith(":"):
-            return None
-        edge, index = lane.rsplit("_", 1)
-        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.lane_width_m) - 1)
-        return edge, int(index) + round(lateral_offset_m / float(self.lane_width_m[i]))
+        edge, index = key
+        return edge, int(index) + round(lateral_offset_m / self._lane_width[i])
 
     def lane_step(
         self, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
@@ -157,11 +210,27 @@ class RoutePath:
         """+1 / -1 when the target point lies in the lane to the left / right (or further)
         of the point's lane on the same edge; 0 otherwise, and where either lies in a
         junction or a lane-change stretch (lanes compared by the map, not by offsets)."""
-        own = self.lane_beside(s_m, offset_m)
-        target = self.lane_beside(target_s_m, target_offset_m)
-        if own is None or target is None or own[0] != target[0] or own[1] == target[1]:
+        # lane_beside twice, inline (called every step by followers)
+        for begin, end in self._lane_change_spans:
+            if begin <= s_m <= end or begin <= target_s_m <= end:
+                return 0
+        spacing, last = self.spacing_m, len(self.xy_m) - 1
+        keys, widths = self._lane_key_of_point, self._lane_width
+        i = min(int(max(s_m, 0.0) // spacing), last)
+        own = keys[i]
+        if own is None:
             return 0
-        return 1 if target[1] > own[1] else -1
+        own_edge, own_index = own
+        own_lane = int(own_index) + round(offset_m / widths[i])
+        j = min(int(max(target_s_m, 0.0) // spacing), last)
+        target = keys[j]
+        if target is None:
+            return 0
+        target_edge, target_index = target
+        target_lane = int(target_index) + round(target_offset_m / widths[j])
+        if own_edge != target_edge or own_lane == target_lane:
+            return 0
+        return 1 if target_lane > own_lane else -1
 
     def project(
         self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0
@@ -171,28 +240,34 @@ class RoutePath:
         With a hint, only the part of the path within `window_m` of it is searched, so a
         route that passes the same place twice (a loop, a grid) does not jump ahead.
         """
-        n_seg = len(self.xy_m) - 1
+        s, lateral = self.project_sl(x_m, y_m, s_hint_m, window_m)
+        return PathPoint(s_m=s, lateral_offset_m=lateral)
+
+    def project_sl(
+        self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0
+    ) -> tuple[float, float]:
+        """``project`` as a plain (arc length, lateral offset) pair, for per-step callers."""
+        s, lateral, _ = self.project_lane(x_m, y_m, s_hint_m, window_m)
+        return s, lateral
+
+    def project_lane(
+        self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0
+    ) -> tuple[float, float, float]:
+        """``project_sl`` and the width of the lane there (``lane_width_near`` of the arc
+        length): (arc length, lateral offset, lane width)."""
         if s_hint_m is None:
-            lo, hi = 0, n_seg
+            hint, window, use_hint = 0.0, 0.0, False
         else:
-            w = int(window_m / self.spacing_m) + 1
-            centre = self._index(s_hint_m)
-            lo, hi = max(0, centre - w), min(n_seg, centre + w + 1)
-        a = self.xy_m[lo:hi]
-        d = self.xy_m[lo + 1 : hi + 1] - a
-        rel = np.array([x_m, y_m]) - a
-        seg_len2 = np.einsum("ij,ij->i", d, d)
-        t = np.clip(np.einsum("ij,ij->i", rel, d) / np.maximum(seg_len2, 1e-18), 0.0, 1.0)
-        closest = a + d * t[:, None]
-        dist2 = np.einsum("ij,ij->i", closest - [x_m, y_m], closest - [x_m, y_m])
-        k = int(np.argmin(dist2))
-        cross = d[k, 0] * rel[k, 1] - d[k, 1] * rel[k, 0]
-        seg_len = float(np.sqrt(seg_len2[k]))
-        s = (lo + k) * self.spacing_m + float(t[k]) * seg_len
-        return PathPoint(
-            s_m=min(s, self.length_m),
-            lateral_offset_m=float(np.copysign(np.sqrt(dist2[k]), cross)),
-        )
+            hint, window, use_hint = float(s_hint_m), float(window_m), True
+            if not (math.isfinite(hint) and 0.0 <= window < math.inf):
+                raise ValueError(
+                    f"project: s_hint_m must be finite and window_m >= 0 and finite, got "
+                    f"{s_hint_m!r} and {window_m!r}"
+                )
+        return project_kernel(
+            self._xy_c, self._lane_width_c, self.spacing_m, self.length_m, use_hint, hint,
+            window, float(x_m), float(y_m),
+        )  # fmt: skip
 
     def curvature_1pm(self, smoothing_m: float) -> FloatArray:
         """Unsigned curvature at every point, averaged over `smoothing_m` of arc length."""

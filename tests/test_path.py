@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from platoon_sumo.path import LaneChange, RoutePath
+from tests.control import reference_path as ref
 
 
 def circle_path(radius_m: float, spacing_m: float = 0.05) -> RoutePath:
@@ -83,3 +84,74 @@ def test_lane_beside_counts_lanes_by_offset_on_the_same_edge():
     assert path.lane_beside(105.0, 0.0) is None  # inside the junction
     assert path.lane_beside(160.0, 0.0) is None  # the path is between lanes
     assert path.lane_beside(200.0, 3.2) == ("b", 1)
+
+
+# ----------------------------------------------------------------------------- fast look-ups
+
+
+def lane_change_path() -> RoutePath:
+    """Edge a (lane 1), a junction lane, edge b (lane 0) with a lane change, a left bend."""
+    a = np.array([[0.0, 0.0], [100.0, 0.0]])
+    junction = np.array([[100.0, 0.0], [107.0, 3.0], [110.0, 10.0]])
+    t = np.linspace(0.0, 0.5 * math.pi, 60)
+    b = np.column_stack([110.0 + 40.0 * (1.0 - np.cos(t)), 10.0 + 40.0 * np.sin(t)])
+    change = LaneChange(140.0, 170.0, ("b_0",))
+    return RoutePath.from_pieces(
+        [a, junction, b], ["a_1", ":j_0_0", "b_0"], [13.9, 8.0, 13.9], [3.2, 3.0, 3.5], 0.5,
+        [change],
+    )  # fmt: skip
+
+
+PATHS = {"circle": lambda: circle_path(20.0, spacing_m=0.3), "lanes": lane_change_path}
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    name=st.sampled_from(sorted(PATHS)),
+    x=st.floats(-30.0, 200.0),
+    y=st.floats(-30.0, 60.0),
+    hint=st.one_of(st.none(), st.floats(-20.0, 300.0)),
+    window=st.floats(0.0, 60.0),
+)
+def test_projection_matches_the_numpy_reference(name, x, y, hint, window):
+    """The compiled projection (window arithmetic, nearest segment, first of ties, sign)
+    equals the numpy implementation it replaced."""
+    path = PATHS[name]()
+    got = path.project(x, y, hint, window)
+    want = ref.project(path, x, y, hint, window)
+    assert math.isclose(got.s_m, want.s_m, abs_tol=1e-9)
+    assert math.isclose(got.lateral_offset_m, want.lateral_offset_m, abs_tol=1e-9)
+    assert path.project_sl(x, y, hint, window) == (got.s_m, got.lateral_offset_m)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    name=st.sampled_from(sorted(PATHS)),
+    s=st.floats(-20.0, 300.0),
+    target_s=st.floats(-20.0, 300.0),
+    offset=st.floats(-8.0, 8.0),
+    target_offset=st.floats(-8.0, 8.0),
+)
+def test_scalar_lookups_match_the_numpy_reference(name, s, target_s, offset, target_offset):
+    path = PATHS[name]()
+    got, want = path.point_at(s), ref.point_at(path, s)
+    assert math.isclose(got[0], want[0], abs_tol=1e-9)
+    assert math.isclose(got[1], want[1], abs_tol=1e-9)
+    assert math.isclose(path.heading_at(s), ref.heading_at(path, s), abs_tol=1e-12)
+    assert path.lane_at(s) == ref.lane_at(path, s)
+    assert path.lane_beside(s, offset) == ref.lane_beside(path, s, offset)
+    assert path.lane_step(s, offset, target_s, target_offset) == ref.lane_step(
+        path, s, offset, target_s, target_offset
+    )
+    assert path.length_m == ref.length_m(path)
+
+
+def test_projection_with_integer_arguments_and_bad_hints():
+    path = lane_change_path()
+    assert path.project(50, 1, 40, 20) == path.project(50.0, 1.0, 40.0, 20.0)
+    for hint, window in ((math.nan, 10.0), (math.inf, 10.0), (10.0, -1.0), (10.0, math.inf)):
+        try:
+            path.project(50.0, 1.0, hint, window)
+        except ValueError:
+            continue
+        raise AssertionError(f"no error for hint {hint}, window {window}")

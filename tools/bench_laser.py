@@ -378,8 +378,8 @@ docstring of `platoon_sumo/sensors/raycast.py`):
   its obstacle's index; the evaluations equal to their ray's minimum after the chunk's
   `minimum.at` keep the lowest index with a second `minimum.at` (ties go to the lower
   index), so the identities come from the same single pass, with the same ranges and
-  the same random draws, so the loop can count a follower's rays on its predecessor
-  from them instead of casting the predecessor a second time.
+  the same random draws. The loop can count a follower's rays on its predecessor from
+  them instead of casting the predecessor a second time.
 
 The result is exact to rounding (property-tested against a shapely oracle to 1e-9 m)
 and identical whether sensors are scanned one at a time or batched.

@@ -46,6 +46,12 @@ Each step:
    speed capped by the laser's clearance along the commanded arc) until a predecessor
    is confirmed again, then follows again.
 
+Each command carries its ``Telemetry``: the mode, the measured gap (the straight-line
+gap of 3., from the own front bumper to the tracked rear; None unless following) and the
+spacing policy (``GapPolicy``). The arithmetic runs in compiled numba kernels
+(``platoon_sumo.kernels``): a step costs tens of microseconds, not milliseconds
+(``docs/performance.md``, "Controllers").
+
 Defaults are for cars (4.5 x 1.8 m, utm30lx, up to 14 m/s, dt 0.1 s). Robot scale
 (0.3 x 0.25 m, paper_follower-like scans 0.3..1-3 m, 0.1..1 m/s, dt 0.05 s)::
 
@@ -64,6 +70,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import ClassVar, Literal
 
 import numpy as np
@@ -72,14 +79,26 @@ from platoon_sumo.config_loader import require, require_choice, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
 from platoon_sumo.control.perception import (
     PerceptionParams,
+    RearCandidate,
     RearTracker,
-    SensorPose,
     TrackerParams,
-    detect_rears,
+    candidate_from_row,
+    params_array,
+    ray_table,
 )
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
-from platoon_sumo.path import FloatArray, PathPoint, RoutePath
+from platoon_sumo.kernels.follower import (
+    arc_clearance_kernel,
+    follow_kernel,
+    krauss_safe_speed,
+    perceive_kernel,
+    pursuit,
+    trail_kernel,
+)
+from platoon_sumo.kernels.perception import CANDIDATE_COLUMNS
+from platoon_sumo.path import FloatArray, RoutePath
 from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.vehicles import MotionLimits
 
 _POLICIES = ("constant_distance", "constant_time_gap")
 _ON_LOST = ("stop", "route_following")
@@ -190,24 +209,71 @@ class TrackedPredecessor:
     """Estimated rear centre in the world (odometry) frame."""
 
 
-def _krauss_safe_speed(room_m: float, lead_speed_mps: float, decel: float, tau: float) -> float:
-    """Highest speed from which the vehicle can stop within ``room_m`` behind a braking lead."""
-    if room_m <= 0.0:
-        return 0.0
-    bt = decel * tau
-    return -bt + math.sqrt(bt * bt + lead_speed_mps**2 + 2.0 * decel * room_m)
+class _ScanBuffers:
+    """What ``perceive_kernel`` works in for one scan geometry: the rays' cosines and
+    sines, its constants (``CONST_NAMES``) and output buffers (as many rows as rays)."""
+
+    def __init__(
+        self, key: tuple[float, ...], scan: LaserScan, width: float, params: LaserFollowerParams
+    ):
+        self.key = key
+        self.cos_a, self.sin_a = ray_table(scan)
+        t = params.tracker
+        self.consts = np.array(
+            [
+                scan.angle_increment, scan.range_min, width, params.min_gap_m,
+                t.accel_noise_mps2, t.meas_noise_m, t.gate_chi2,
+            ],
+            dtype=np.float64,
+        )  # fmt: skip
+        n = scan.ranges.size
+        self.pts = np.zeros((n, 2))
+        self.rows = np.zeros((n, len(CANDIDATE_COLUMNS)))
+        self.cand_pts = np.zeros((n, 2))
+        self.cand_row = np.zeros(len(CANDIDATE_COLUMNS))
+        self.cand_n = 0
+        """The candidate associated last: its row and its cluster's first points."""
+
+    def last_candidate(self) -> RearCandidate:
+        """The candidate associated last, as a record (``RearTracker.last_candidate``)."""
+        return candidate_from_row(self.cand_pts[: self.cand_n].copy(), self.cand_row.tolist())
+
+
+class _RouteShadow(RouteFollowing):
+    """The ``route_following`` fallback. Its state between steps (besides caches of the
+    path) is its arc length on the route, which ``advance`` moves on exactly as its
+    ``step`` does (same hint, same window), so it is asked for a command only on the
+    steps that use one (the equivalence tests check this against a fallback stepped
+    every step)."""
+
+    def advance(self, obs: Observation) -> None:
+        p = self.params
+        lookahead = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        window = max(20.0, 3 * lookahead)
+        self._s_m = obs.path.project_sl(obs.x_m, obs.y_m, self._s_m, window)[0]
 
 
 @CONTROLLERS.register("laser_follower")
 class LaserFollower:
-    """Follows the vehicle ahead with the laser only (see the module docstring)."""
+    """Follows the vehicle ahead with the laser only (see the module docstring).
+
+    The arithmetic runs in compiled kernels (``platoon_sumo.kernels.follower``), one call
+    per task: ``perceive_kernel`` on a new scan (segmentation, rear fits, blocked check,
+    tracker update), ``follow_kernel`` while following (trail, spacing law, pure
+    pursuit), ``RoutePath.project_lane`` for the route (each point once per step). This
+    class keeps the state and the decisions between them.
+    """
 
     Params: ClassVar[type[LaserFollowerParams]] = LaserFollowerParams
 
     def __init__(self, params: LaserFollowerParams | None = None):
         self.params = params or LaserFollowerParams()
         self.tracker = RearTracker(self.params.tracker)
-        self._fallback = RouteFollowing(self.params.fallback)
+        self._fallback = _RouteShadow(self.params.fallback)
+        self._perception_array = params_array(self.params.perception)
+        # the trail lives in rows [lo, hi) of a buffer: compacted when it is full, or
+        # doubled (up to twice the most points kept) when more than half of it is trail
+        self._trail_buf: FloatArray = np.zeros((min(64, 2 * self.params.max_trail_points + 2), 2))
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -215,18 +281,29 @@ class LaserFollower:
     def reset(self) -> None:
         self.tracker.reset()
         self._fallback.reset()
-        self._trail: list[tuple[float, float]] = []
+        self._trail_lo = self._trail_hi = 0
+        self._trail_last = (0.0, 0.0)
         self._last_scan: LaserScan | None = None
-        self._sensor_pose: SensorPose | None = None
         self._mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._blocked = False
         self._in_view = False
-        self._scan_points: FloatArray = np.zeros((0, 2))
+        self._clearance_scan: LaserScan | None = None
+        """The last processed scan, for the clearance along the fallback's arc."""
+        self._scan_buffers: _ScanBuffers | None = None
         self._track: TrackedPredecessor | None = None
+        self._track_args: tuple[float, float, float, bool, float, float, float] | None = None
+        """The fields of ``track``, built when asked for."""
         self._route: RoutePath | None = None
         self._route_s: float | None = None
+        self._ahead_memo: tuple[float, float, tuple[float, float, float] | None] | None = None
+        self._corridor_memo: tuple[float, float, bool] | None = None
+        """The last point projected on the route this step, and its corridor test."""
         self._outside_since: float | None = None
         self._measured_gap_m: float | None = None
+        self._look = self.params.lookahead_min_m
+        """The pure-pursuit look-ahead of the current step."""
+        self._law_limits: MotionLimits | None = None
+        self._law_array: FloatArray = np.zeros(0)
         self.mode = "lost"
 
     def desired_gap_m(self, speed_mps: float) -> float:
@@ -236,80 +313,108 @@ class LaserFollower:
             return p.standstill_gap_m
         return p.standstill_gap_m + p.time_gap_s * max(speed_mps, 0.0)
 
-    @property
-    def track(self) -> TrackedPredecessor | None:
-        """The confirmed predecessor track at the last step, or None."""
-        return self._track
-
-    @property
-    def trail(self) -> FloatArray:
-        """The stored trail of the predecessor's rear positions (world frame), (n, 2)."""
-        return np.array(self._trail, dtype=np.float64).reshape(-1, 2)
-
-    # ------------------------------------------------------------------ step
-
-    def step(self, observation: Observation) -> Command:
-        obs, p = observation, self.params
-        if p.corridor_half_width_m is not None:
-            self._locate_on_route(obs)
-        if obs.scan is not None and obs.scan is not self._last_scan:
-            self._perceive(obs, obs.scan)
-        shadow = None
-        if p.on_lost == "route_following":
-            # stepped every step so it always knows where on the route the vehicle is
-            shadow = self._fallback.step(replace(obs, vehicle_ahead=None))
-        if self.tracker.confirmed:
-            self.mode = "following"
-            cmd = self._follow(obs)
-        else:
-            self._track = None
-            if shadow is not None:
-                self.mode = "route_following"
-                cmd = self._guarded(obs, shadow)
-            else:
-                self.mode = "stopping"
-                cmd = self._stop(obs)
-        if self._blocked:
-            cmd = Command(speed_mps=0.0, yaw_rate_radps=cmd.yaw_rate_radps)
-        measured = self._measured_gap_m if self.mode == "following" else None
-        return replace(cmd, telemetry=Telemetry(self.mode, measured, self.gap_policy))
-
-    @property
+    @cached_property
     def gap_policy(self) -> GapPolicy:
         """The spacing policy as data (for the trajectory table)."""
         p = self.params
         time_gap = p.time_gap_s if p.policy == "constant_time_gap" else 0.0
         return GapPolicy(p.standstill_gap_m, time_gap)
 
+    @property
+    def track(self) -> TrackedPredecessor | None:
+        """The confirmed predecessor track at the last step, or None."""
+        if self._track is None and self._track_args is not None:
+            self._track = TrackedPredecessor(*self._track_args)
+        return self._track
+
+    @property
+    def trail(self) -> FloatArray:
+        """The stored trail of the predecessor's rear positions (world frame), (n, 2)."""
+        return self._trail_buf[self._trail_lo : self._trail_hi].copy()
+
+    # ------------------------------------------------------------------ step
+
+    def step(self, observation: Observation) -> Command:
+        obs, p = observation, self.params
+        self._ahead_memo = self._corridor_memo = None  # reused within one step only
+        self._look = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        if p.corridor_half_width_m is not None:
+            self._locate_on_route(obs)
+        if obs.scan is not None and obs.scan is not self._last_scan:
+            self._perceive(obs, obs.scan)
+        lane_change = 0
+        heading: float | None = None
+        if self.tracker.confirmed:
+            if p.on_lost == "route_following":
+                self._fallback.advance(obs)  # so it knows where on the route it is
+            self.mode = "following"
+            speed, yaw_rate, lane_change = self._follow(obs)
+        else:
+            self._track = self._track_args = None
+            if p.on_lost == "route_following":
+                self.mode = "route_following"
+                shadow = self._fallback.step(
+                    obs if obs.vehicle_ahead is None else replace(obs, vehicle_ahead=None)
+                )
+                speed = self._guarded(obs, shadow)
+                yaw_rate, lane_change, heading = (
+                    shadow.yaw_rate_radps,
+                    shadow.lane_change,
+                    shadow.heading_rad,
+                )
+            else:
+                self.mode = "stopping"
+                speed, yaw_rate = self._stop(obs)
+        if self._blocked:
+            speed, lane_change, heading = 0.0, 0, None
+        measured = self._measured_gap_m if self.mode == "following" else None
+        telemetry = Telemetry(mode=self.mode, measured_gap_m=measured, gap_policy=self.gap_policy)
+        return Command(
+            speed_mps=speed,
+            yaw_rate_radps=yaw_rate,
+            heading_rad=heading,
+            lane_change=lane_change,
+            telemetry=telemetry,
+        )
+
     # ------------------------------------------------------------------ perception
 
     def _perceive(self, obs: Observation, scan: LaserScan) -> None:
         p = self.params
         self._last_scan = scan
-        pose = SensorPose(scan.origin_x_m, scan.origin_y_m, scan.heading_rad)
-        self._sensor_pose = pose
+        ox, oy, heading = scan.origin_x_m, scan.origin_y_m, scan.heading_rad
+        hc, hs = math.cos(heading), math.sin(heading)  # the sensor pose at the scan
         c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        dx, dy = scan.origin_x_m - obs.x_m, scan.origin_y_m - obs.y_m
-        self._mount = (c * dx + s * dy, -s * dx + c * dy, scan.heading_rad - obs.yaw_rad)
-        width = self._width(obs)
+        dx, dy = ox - obs.x_m, oy - obs.y_m
+        self._mount = (c * dx + s * dy, -s * dx + c * dy, heading - obs.yaw_rad)
+        width = self.params.predecessor_width_m or obs.width_m
         tracker = self.tracker
-        roi = None
-        if tracker.active:
-            px, py = tracker.predicted(obs.time_s)[:2]
-            sx, sy = pose.to_sensor(float(px), float(py))
-            spread = math.sqrt(p.tracker.gate_chi2 * float(np.trace(tracker.P[:2, :2]) + 0.04))
-            roi = (sx, sy, max(spread, 0.5 * width) + width)
-        hint = tracker.heading_hint(scan.heading_rad) - scan.heading_rad
-        candidates = detect_rears(scan, p.perception, width, hint, roi)
         was_active = tracker.active
-        if not was_active:  # start only on a rear on the own route
-            candidates = [
-                cand
-                for cand in candidates
-                if self._in_corridor(obs, *pose.to_world(cand.x_m, cand.y_m))
+        b = self._buffers(scan, width)
+        n_pts, n_rows, blocked, k, b.cand_n, x, y, vx, vy, var_p, var_v = perceive_kernel(
+            scan.ranges, b.cos_a, b.sin_a, b.consts, self._perception_array, was_active,
+            tracker.state_array, float(obs.time_s), float(ox), float(oy), float(heading),
+            b.pts, b.rows, b.cand_pts, b.cand_row,
+        )  # fmt: skip
+        if was_active:
+            k = tracker.record_step(obs.time_s, k, (x, y, vx, vy), var_p, var_v, b.last_candidate)
+        else:  # start only on a rear on the own route
+            gate = p.tracker
+            rows = b.rows[:n_rows]
+            keep = [
+                j
+                for j, r in enumerate(rows.tolist())
+                # the start gate first (as the tracker has it): fewer projections
+                if 0.0 < r[0] <= gate.start_range_max_m
+                and abs(r[1]) <= gate.start_lateral_m
+                and r[6] == 0.0
+                and self._in_corridor(obs, ox + hc * r[0] - hs * r[1], oy + hs * r[0] + hc * r[1])
             ]
-        own_v = (obs.speed_mps * c, obs.speed_mps * s)
-        hit = tracker.step(obs.time_s, candidates, pose, own_v, 0.5 * width)
+            own_v = (obs.speed_mps * c, obs.speed_mps * s)
+            pose = (ox, oy, heading)
+            points = b.pts[:n_pts].copy()  # the buffer is the next scan's
+            k = tracker.step_rows(obs.time_s, points, rows[keep], pose, own_v, 0.5 * width)
+        hit = k >= 0
         inside = tracker.active and self._in_corridor(obs, *tracker.position)
         if not tracker.active or inside:
             self._outside_since = None
@@ -318,14 +423,22 @@ class LaserFollower:
         elif obs.time_s - self._outside_since > p.corridor_exit_s:
             tracker.reset()  # it turned off the route: lost, do not follow it
             self._outside_since = None
-            hit = None
-        self._in_view = hit is not None
-        if hit is not None and not was_active:
-            self._trail = []  # a new track: the old trail may belong to another vehicle
-        if hit is not None and inside:
+            hit = False
+        self._in_view = hit
+        if hit and not was_active:
+            self._trail_lo = self._trail_hi = 0  # a new track: the old trail may be another's
+        if hit and inside:
             self._append_trail(*tracker.position)
-        self._blocked = self._check_blocked(scan, width)
-        self._scan_points = scan.points_world()
+        self._blocked = blocked
+        self._clearance_scan = scan
+
+    def _buffers(self, scan: LaserScan, width: float) -> _ScanBuffers:
+        """The kernel buffers and constants for this scan geometry and expected width."""
+        key = (scan.angle_min, scan.angle_increment, scan.ranges.size, scan.range_min, width)
+        b = self._scan_buffers
+        if b is None or b.key != key:
+            b = self._scan_buffers = _ScanBuffers(key, scan, width, self.params)
+        return b
 
     # ------------------------------------------------------------------ route corridor
 
@@ -333,20 +446,29 @@ class LaserFollower:
         """Track the follower's own arc length on its route (searched near the last one)."""
         if obs.path is not self._route:
             self._route, self._route_s = obs.path, None
-        window = max(4.0 * obs.length_m, 2.0 * self._lookahead(obs))
-        self._route_s = obs.path.project(obs.x_m, obs.y_m, self._route_s, window).s_m
+        window = max(4.0 * obs.length_m, 2.0 * self._look)
+        self._route_s = obs.path.project_sl(obs.x_m, obs.y_m, self._route_s, window)[0]
 
-    def _ahead_on_route(self, obs: Observation, x_m: float, y_m: float) -> PathPoint | None:
-        """A world point projected on the own route, or None when it is not ahead."""
+    def _ahead_on_route(
+        self, obs: Observation, x_m: float, y_m: float
+    ) -> tuple[float, float, float] | None:
+        """A world point projected on the own route (arc length, lateral offset, lane
+        width there), or None when it is not ahead."""
         if self._route_s is None:
             return None
-        path, s0 = obs.path, self._route_s
+        memo = self._ahead_memo
+        if memo is not None and memo[0] == x_m and memo[1] == y_m:
+            return memo[2]
+        s0 = self._route_s
         # search from the own arc length to a few vehicle lengths beyond the point's range
         reach = 0.5 * (
             math.hypot(x_m - obs.x_m, y_m - obs.y_m) + _CORRIDOR_AHEAD_LENGTHS * obs.length_m
         )
-        at = path.project(x_m, y_m, s0 + reach, reach)
-        return at if at.s_m > s0 else None
+        at: tuple[float, float, float] | None = obs.path.project_lane(x_m, y_m, s0 + reach, reach)
+        if at is not None and at[0] <= s0:
+            at = None
+        self._ahead_memo = (x_m, y_m, at)
+        return at
 
     def _in_corridor(self, obs: Observation, x_m: float, y_m: float) -> bool:
         """Does the world point lie ahead on the own route, within the corridor (centred on
@@ -354,14 +476,18 @@ class LaserFollower:
         half_width = self.params.corridor_half_width_m
         if half_width is None or self._route_s is None:
             return True
+        memo = self._corridor_memo
+        if memo is not None and memo[0] == x_m and memo[1] == y_m:
+            return memo[2]
         at = self._ahead_on_route(obs, x_m, y_m)
         if at is None:
-            return False
-        if half_width == "lane":
-            path = obs.path
-            i = min(int(at.s_m // path.spacing_m), len(path.lane_width_m) - 1)
-            half_width = (0.5 + self.params.corridor_margin_rel) * float(path.lane_width_m[i])
-        return abs(at.lateral_offset_m - obs.lane_offset_m) <= half_width
+            inside = False
+        else:
+            if half_width == "lane":
+                half_width = (0.5 + self.params.corridor_margin_rel) * at[2]
+            inside = abs(at[1] - obs.lane_offset_m) <= half_width
+        self._corridor_memo = (x_m, y_m, inside)
+        return inside
 
     def _lane_request(self, obs: Observation, x_m: float, y_m: float) -> int:
         """Where SUMO steers (lane actuation): +1 / -1 towards the lane of the same road in
@@ -370,195 +496,96 @@ class LaserFollower:
         at = self._ahead_on_route(obs, x_m, y_m) if self._in_view else None
         if at is None or self._route_s is None:
             return 0
-        return obs.path.lane_step(self._route_s, obs.lane_offset_m, at.s_m, at.lateral_offset_m)
+        return obs.path.lane_step(self._route_s, obs.lane_offset_m, at[0], at[1])
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""
         if self._route_s is None:
             return None
-        return obs.path.point_at(self._route_s + self._lookahead(obs))
-
-    def _width(self, obs: Observation) -> float:
-        return self.params.predecessor_width_m or obs.width_m
-
-    def _check_blocked(self, scan: LaserScan, width: float) -> bool:
-        """Anything within min_gap_m of the sensor in front of the vehicle, or closer than
-        the scanner's range_min (REP 117 ``-inf``: position unknown, assume the worst)?"""
-        r, a = scan.ranges, scan.angles
-        half = 0.5 * width
-        ok = np.isfinite(r)
-        x, y = r[ok] * np.cos(a[ok]), r[ok] * np.sin(a[ok])
-        if np.any((x > 0.0) & (x <= self.params.min_gap_m) & (np.abs(y) <= half)):
-            return True
-        close = a[np.isneginf(r)]
-        return bool(
-            np.any((np.cos(close) > 0.0) & (np.abs(scan.range_min * np.sin(close)) <= half))
-        )
+        return obs.path.point_at(self._route_s + self._look)
 
     def _append_trail(self, x: float, y: float) -> None:
-        trail = self._trail
-        spacing = self.params.trail_spacing_m
-        if not trail or math.hypot(x - trail[-1][0], y - trail[-1][1]) >= spacing:
-            trail.append((x, y))
-            if len(trail) > self.params.max_trail_points:
-                del trail[0]
-
-    def _prune_trail(self, obs: Observation) -> None:
-        """Drop the leading trail points behind the vehicle (keep one for interpolation)."""
-        trail = self._trail
-        if len(trail) < 2:
-            return
-        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        pts = np.asarray(trail)
-        ahead = (pts[:, 0] - obs.x_m) * c + (pts[:, 1] - obs.y_m) * s > 0.0
-        first_ahead = int(np.argmax(ahead)) if ahead.any() else len(trail)
-        drop = first_ahead - 1
-        if drop > 0:
-            del trail[:drop]
+        lo, hi = self._trail_lo, self._trail_hi
+        last_x, last_y = self._trail_last
+        if hi == lo or math.hypot(x - last_x, y - last_y) >= self.params.trail_spacing_m:
+            buf = self._trail_buf
+            if hi == len(buf):  # full: move the trail to the front, in a larger buffer?
+                size = len(buf)
+                if hi - lo > size // 2:
+                    size = min(2 * size, 2 * self.params.max_trail_points + 2)
+                    buf = self._trail_buf = np.concatenate([buf, np.zeros((size - len(buf), 2))])
+                buf[: hi - lo] = buf[lo:hi]
+                lo, hi = 0, hi - lo
+            buf[hi, 0] = x
+            buf[hi, 1] = y
+            hi += 1
+            if hi - lo > self.params.max_trail_points:
+                lo += 1
+            self._trail_lo, self._trail_hi = lo, hi
+            self._trail_last = (x, y)
 
     # ------------------------------------------------------------------ following
 
-    def _follow(self, obs: Observation) -> Command:
-        p, lim = self.params, obs.limits
-        est = self.tracker.predicted(obs.time_s)
-        rx, ry, vx, vy = (float(v) for v in est)
-        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        fx, fy = obs.x_m + obs.front_offset_m * c, obs.y_m + obs.front_offset_m * s
-        gap = math.hypot(rx - fx, ry - fy)
-        self._measured_gap_m = gap
-        ux, uy = ((rx - fx) / gap, (ry - fy) / gap) if gap > 1e-9 else (c, s)
-        own_vx, own_vy = obs.speed_mps * c, obs.speed_mps * s
-        range_rate = ux * (vx - own_vx) + uy * (vy - own_vy)
-        lead_speed = math.hypot(vx, vy)
-
-        # Spacing along the predecessor's path (the trail), not the chord: in a curve the
-        # chord is shorter and its rate mixes in the turning, which would brake the follower.
-        self._prune_trail(obs)
-        if p.steer_at == "trail":
-            path_gap = max(self._trail_length(obs, (rx, ry)), gap)
-            gap_rate = lead_speed - obs.speed_mps
-        else:
-            path_gap, gap_rate = gap, range_rate
-        error = path_gap - self.desired_gap_m(obs.speed_mps)
-        accel = p.k_gap_1ps2 * error + p.k_rate_1ps * gap_rate
-        accel = min(max(accel, -lim.max_decel_mps2), lim.max_accel_mps2)
-        # Safety on the straight-line gap and the closing speed along the line of sight.
-        safe = _krauss_safe_speed(
-            gap - p.min_gap_m, max(ux * vx + uy * vy, 0.0), p.comfort_decel_mps2, p.reaction_time_s
-        )
-        speed = min(max(obs.speed_mps + accel * obs.dt_s, 0.0), safe, lim.max_speed_mps)
-
-        end: tuple[float, float] | None = (rx, ry)
-        if not self._in_corridor(obs, rx, ry):
-            end = None  # turning off the route: never steer after it
-        if p.steer_at == "trail":
-            target = self._trail_target(obs, end, self._route_target(obs) if end is None else None)
-        else:
-            target = end or self._route_target(obs)
-        yaw_rate = self._pursuit(obs, speed, target)
-
-        sensor = self._current_sensor_pose(obs)
-        sx, sy = sensor.to_sensor(rx, ry)
-        self._track = TrackedPredecessor(
-            range_m=math.hypot(sx, sy),
-            bearing_rad=math.atan2(sy, sx),
-            range_rate_mps=range_rate,
-            in_view=self._in_view,
-            speed_mps=math.hypot(vx, vy),
-            x_m=rx,
-            y_m=ry,
-        )
-        return Command(
-            speed_mps=speed, yaw_rate_radps=yaw_rate, lane_change=self._lane_request(obs, rx, ry)
-        )
-
-    def _trail_length(self, obs: Observation, end: tuple[float, float]) -> float:
-        """Length of the trail from the front bumper to ``end`` (the predecessor's rear)."""
-        pts = np.asarray([*self._trail, end], dtype=np.float64)
-        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        bx, by = obs.x_m + obs.front_offset_m * c, obs.y_m + obs.front_offset_m * s
-        ahead = np.flatnonzero((pts[:, 0] - bx) * c + (pts[:, 1] - by) * s > 0.0)
-        first = int(ahead[0]) if ahead.size else len(pts) - 1
-        rest = pts[first:]
-        hop = math.hypot(rest[0, 0] - bx, rest[0, 1] - by)
-        return hop + float(np.hypot(*np.diff(rest, axis=0).T).sum())
-
-    def _current_sensor_pose(self, obs: Observation) -> SensorPose:
-        mx, my, myaw = self._mount
-        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        return SensorPose(obs.x_m + c * mx - s * my, obs.y_m + s * mx + c * my, obs.yaw_rad + myaw)
-
-    def _lookahead(self, obs: Observation) -> float:
+    def _follow(self, obs: Observation) -> tuple[float, float, int]:
+        """(speed, yaw rate, lane request) behind the tracked predecessor: the spacing law
+        and pure pursuit on the trail (``follow_kernel``), towards the lane it is seen in."""
         p = self.params
-        return max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        rx, ry, vx, vy = self.tracker.predicted_state(obs.time_s)
+        # steering: never after a rear outside the route corridor (turning off the route)
+        inside = self._in_corridor(obs, rx, ry)
+        route = None if inside else self._route_target(obs)
+        route_x, route_y = route if route is not None else (0.0, 0.0)
+        mx, my, myaw = self._mount
+        lo, speed, yaw_rate, gap, range_rate, lead_speed, range_m, bearing = follow_kernel(
+            self._trail_buf, self._trail_lo, self._trail_hi, self._law(obs.limits),
+            p.steer_at == "trail", obs.x_m, obs.y_m, obs.yaw_rad, obs.speed_mps,
+            obs.front_offset_m, obs.dt_s, self._look, rx, ry, vx, vy, inside,
+            route is not None, route_x, route_y, mx, my, myaw,
+        )  # fmt: skip
+        self._trail_lo = lo
+        self._measured_gap_m = gap
+        self._track = None
+        self._track_args = (range_m, bearing, range_rate, self._in_view, lead_speed, rx, ry)
+        return speed, yaw_rate, self._lane_request(obs, rx, ry)
 
-    def _trail_target(
-        self,
-        obs: Observation,
-        end: tuple[float, float] | None,
-        beyond_trail: tuple[float, float] | None = None,
-    ) -> tuple[float, float] | None:
-        """Point of the trail (extended to ``end``) one look-ahead from the reference point;
-        ``beyond_trail`` (if given) when no trail point is that far."""
-        pts = list(self._trail)
-        if end is not None:
-            pts.append(end)
-        if not pts:
-            return beyond_trail
-        arr = np.asarray(pts, dtype=np.float64)
-        d = np.hypot(arr[:, 0] - obs.x_m, arr[:, 1] - obs.y_m)
-        look = self._lookahead(obs)
-        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        ahead = (arr[:, 0] - obs.x_m) * c + (arr[:, 1] - obs.y_m) * s > 0.0
-        # never aim behind: a point left behind (the trail stopped growing) is skipped
-        beyond = np.flatnonzero((d >= look) & ahead)
-        if beyond.size == 0:
-            if beyond_trail is not None:
-                return beyond_trail
-            return float(arr[-1, 0]), float(arr[-1, 1])
-        j = int(beyond[0])
-        if j == 0 or d[j - 1] >= look:
-            return float(arr[j, 0]), float(arr[j, 1])
-        # the point of segment (j-1, j) at distance `look` from the reference point
-        a, b = arr[j - 1], arr[j]
-        e = b - a
-        w = a - np.array([obs.x_m, obs.y_m])
-        qa, qb, qc = float(e @ e), 2.0 * float(w @ e), float(w @ w) - look * look
-        disc = max(qb * qb - 4.0 * qa * qc, 0.0)
-        t = (-qb + math.sqrt(disc)) / (2.0 * qa) if qa > 0 else 1.0
-        t = min(max(t, 0.0), 1.0)
-        return float(a[0] + t * e[0]), float(a[1] + t * e[1])
-
-    def _pursuit(self, obs: Observation, speed: float, target: tuple[float, float] | None) -> float:
-        """Pure-pursuit yaw rate at the speed the vehicle will reach this step."""
-        if target is None:
-            return 0.0
-        lim = obs.limits
-        next_speed = min(
-            max(speed, obs.speed_mps - lim.max_decel_mps2 * obs.dt_s),
-            obs.speed_mps + lim.max_accel_mps2 * obs.dt_s,
-        )
-        dx, dy = target[0] - obs.x_m, target[1] - obs.y_m
-        dist = math.hypot(dx, dy)
-        if dist < 1e-6:
-            return 0.0
-        alpha = math.atan2(dy, dx) - obs.yaw_rad
-        return max(next_speed, 0.0) * 2.0 * math.sin(alpha) / dist
+    def _law(self, limits: MotionLimits) -> FloatArray:
+        """The parameters of ``follow_kernel`` (``LAW_NAMES``) with these limits."""
+        if limits is not self._law_limits:
+            p = self.params
+            time_gap = p.time_gap_s if p.policy == "constant_time_gap" else 0.0
+            self._law_array = np.array(
+                [
+                    p.k_gap_1ps2, p.k_rate_1ps, p.standstill_gap_m, time_gap, p.min_gap_m,
+                    p.comfort_decel_mps2, p.reaction_time_s, limits.max_decel_mps2,
+                    limits.max_accel_mps2, limits.max_speed_mps,
+                ],
+                dtype=np.float64,
+            )  # fmt: skip
+            self._law_limits = limits
+        return self._law_array
 
     # ------------------------------------------------------------------ lost
 
-    def _stop(self, obs: Observation) -> Command:
+    def _stop(self, obs: Observation) -> tuple[float, float]:
+        """(speed, yaw rate): brake comfortably along what is left of the trail."""
         speed = max(obs.speed_mps - self.params.comfort_decel_mps2 * obs.dt_s, 0.0)
-        self._prune_trail(obs)
-        target = self._trail_target(obs, None) if len(self._trail) else None
-        if target is not None:
-            c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-            if (target[0] - obs.x_m) * c + (target[1] - obs.y_m) * s <= 0.0:
-                target = None  # the trail is used up
-        return Command(speed_mps=speed, yaw_rate_radps=self._pursuit(obs, speed, target))
+        c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
+        # prune the trail behind, and its point one look-ahead away (or its last)
+        lo, _, found, tx, ty = trail_kernel(
+            self._trail_buf, self._trail_lo, self._trail_hi, obs.x_m, obs.y_m, c, s, False,
+            0.0, 0.0, True, False, 0.0, 0.0, self._look,
+        )  # fmt: skip
+        self._trail_lo = lo
+        if found < 0 or (tx - obs.x_m) * c + (ty - obs.y_m) * s <= 0.0:
+            return speed, 0.0  # no trail, or it is used up
+        lim = obs.limits
+        return speed, pursuit(
+            speed, obs.speed_mps, lim.max_decel_mps2, lim.max_accel_mps2, obs.dt_s, obs.x_m,
+            obs.y_m, obs.yaw_rad, tx, ty,
+        )  # fmt: skip
 
-    def _guarded(self, obs: Observation, cmd: Command) -> Command:
-        """The fallback's command with its speed capped by the laser clearance on its arc."""
+    def _guarded(self, obs: Observation, cmd: Command) -> float:
+        """The fallback's speed capped by the laser clearance on its arc."""
         p, lim = self.params, obs.limits
         # the arc the fallback steers: its yaw rate over the speed it will reach (dividing
         # by a speed near zero would bend the arc into the cars beside a standing vehicle)
@@ -568,27 +595,31 @@ class LaserFollower:
         )
         curvature = cmd.yaw_rate_radps / v_next if v_next > 1e-3 else 0.0
         clearance = self._arc_clearance(obs, curvature)
-        safe = _krauss_safe_speed(
+        safe = krauss_safe_speed(
             clearance - p.standstill_gap_m, 0.0, p.comfort_decel_mps2, p.reaction_time_s
         )
-        return replace(cmd, speed_mps=min(cmd.speed_mps, safe))
+        return min(cmd.speed_mps, safe)
 
     def _arc_clearance(self, obs: Observation, curvature: float) -> float:
-        """Free distance from the front bumper along the arc of the given curvature."""
-        pts = self._scan_points
-        if pts.size == 0:
+        """Free distance from the front bumper along the arc of the given curvature, to the
+        hit points of the last processed scan (where they were when it was taken)."""
+        scan = self._clearance_scan
+        if scan is None:
             return math.inf
         c, s = math.cos(obs.yaw_rad), math.sin(obs.yaw_rad)
-        dx = pts[:, 0] - (obs.x_m + obs.front_offset_m * c)
-        dy = pts[:, 1] - (obs.y_m + obs.front_offset_m * s)
-        x, y = c * dx + s * dy, -s * dx + c * dy
-        half = 0.5 * obs.width_m + 0.25 * obs.width_m
-        if abs(curvature) < 1e-4:
-            along, lateral = x, np.abs(y)
-        else:
-            radius = 1.0 / abs(curvature)
-            y = y if curvature > 0 else -y  # mirror right turns into left turns
-            along = radius * np.arctan2(x, radius - y)
-            lateral = np.abs(np.hypot(x, y - radius) - radius)
-        hit = (along > 0.0) & (lateral <= half)
-        return float(along[hit].min()) if hit.any() else math.inf
+        return float(
+            arc_clearance_kernel(
+                np.ascontiguousarray(scan.ranges, dtype=np.float64),
+                float(scan.angle_min),
+                float(scan.angle_increment),
+                float(scan.origin_x_m),
+                float(scan.origin_y_m),
+                float(scan.heading_rad),
+                obs.x_m + obs.front_offset_m * c,
+                obs.y_m + obs.front_offset_m * s,
+                c,
+                s,
+                0.5 * obs.width_m + 0.25 * obs.width_m,
+                float(curvature),
+            )
+        )

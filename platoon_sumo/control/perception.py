@@ -1,8 +1,8 @@
 """Laser perception for followers: scan segmentation, rear-face fitting and a rear tracker.
 
-Pure numpy, no SUMO. Three stages, each usable on its own:
+No SUMO. Three stages, each usable on its own:
 
-1. ``segment_scan``: split a scan into clusters of consecutive hits (vectorised). A
+1. ``segment_scan``: split a scan into clusters of consecutive hits. A
    cluster breaks where the distance between consecutive hit points exceeds
    ``break_abs_m + r sin(dphi) / sin(lambda - dphi)`` (the adaptive breakpoint detector
    of Borges and Aldon: r the nearer range, dphi the angle between the rays, lambda =
@@ -29,24 +29,37 @@ Defaults are for cars (utm30lx: 0.25 deg steps, 0.1..30 m). For robots (0.3 x 0.
 paper_follower-like scans, 0.3..1-3 m) use ``PerceptionParams(break_abs_m=0.03,
 corner_abs_m=0.01)`` and ``TrackerParams(accel_noise_mps2=1.0, meas_noise_m=0.01,
 start_range_max_m=1.5, start_lateral_m=0.2, init_speed_std_mps=0.3)``.
+
+The per-scan work runs in compiled kernels (``platoon_sumo.kernels.perception``): one
+call segments a scan and fits the rears of its clusters. ``detect_rear_rows`` is that
+fast path with the candidates as rows of numbers (what the laser follower uses);
+``segment_scan``, ``fit_rear`` and ``detect_rears`` wrap the same kernels in the records
+below. The tracker's 4-state Kalman algebra is written out in scalars.
 """
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from platoon_sumo.config_loader import require, require_positive
+from platoon_sumo.kernels.perception import (
+    CANDIDATE_COLUMNS,
+    STATE_SIZE,
+    detect,
+    fit_kernel,
+    kalman_step,
+    segment_kernel,
+)
 from platoon_sumo.sensors.laser import LaserScan
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
-
-_MAX_CORNER_COS = math.cos(math.radians(60.0))
-"""The sides of an L-shape must meet at 60 deg or more (90 for a box)."""
 
 
 # ----------------------------------------------------------------------------- parameters
@@ -142,32 +155,58 @@ class Segmentation:
         return self.points[self.starts[c] : self.stops[c]]
 
 
-def segment_scan(scan: LaserScan, params: PerceptionParams) -> Segmentation:
-    """Split a scan into clusters (see the module docstring); vectorised over samples."""
-    r = np.asarray(scan.ranges, dtype=np.float64)
-    finite = np.isfinite(r)
-    idx = np.flatnonzero(finite)
-    if idx.size == 0:
-        empty_i = np.zeros(0, dtype=np.intp)
-        return Segmentation(np.zeros((0, 2)), empty_i, empty_i, empty_i)
-    a = scan.angle_min + idx * scan.angle_increment
-    rr = r[idx]
-    pts = np.column_stack((rr * np.cos(a), rr * np.sin(a)))
-    inf_count = np.cumsum(np.isinf(r))
-    step = np.hypot(*np.diff(pts, axis=0).T)
-    dphi = np.diff(idx) * abs(scan.angle_increment)
-    lam = math.radians(params.break_angle_deg)
-    ratio = np.sin(dphi) / np.maximum(np.sin(lam - dphi), 1e-3)
-    limit = params.break_abs_m + np.minimum(rr[1:], rr[:-1]) * ratio
-    breaks = (
-        (inf_count[idx[1:]] != inf_count[idx[:-1]])
-        | (np.diff(idx) - 1 > params.max_dropout_gap)
-        | (step > limit)
+_RAY_TABLES: dict[tuple[float, float, int], tuple[FloatArray, FloatArray]] = {}
+
+
+def ray_table(scan: LaserScan) -> tuple[FloatArray, FloatArray]:
+    """Cosine and sine of each ray's angle (``scan.angles``), computed once per scan
+    geometry (angle_min, angle_increment, samples)."""
+    key = (scan.angle_min, scan.angle_increment, scan.ranges.size)
+    table = _RAY_TABLES.get(key)
+    if table is None:
+        if len(_RAY_TABLES) >= 64:  # a handful of laser models in a run
+            _RAY_TABLES.clear()
+        angles = scan.angles
+        table = _RAY_TABLES[key] = (np.cos(angles), np.sin(angles))
+    return table
+
+
+@functools.lru_cache(maxsize=64)
+def params_array(params: PerceptionParams) -> FloatArray:
+    """The parameters as the detection kernel takes them
+    (``platoon_sumo.kernels.perception.PARAM_NAMES``)."""
+    return np.array(
+        [
+            params.break_abs_m,
+            math.radians(params.break_angle_deg),
+            params.max_dropout_gap,
+            params.min_points,
+            params.corner_abs_m,
+            params.corner_rel,
+            params.max_width_factor,
+        ],
+        dtype=np.float64,
     )
-    cut = np.flatnonzero(breaks) + 1
-    starts = np.concatenate(([0], cut)).astype(np.intp)
-    stops = np.concatenate((cut, [idx.size])).astype(np.intp)
-    return Segmentation(pts, idx.astype(np.intp), starts, stops)
+
+
+def scan_ranges(scan: LaserScan) -> FloatArray:
+    """The ranges as the kernels take them (C-contiguous float64; usually no copy)."""
+    return np.ascontiguousarray(scan.ranges, dtype=np.float64)
+
+
+def segment_scan(scan: LaserScan, params: PerceptionParams) -> Segmentation:
+    """Split a scan into clusters (see the module docstring)."""
+    cos_a, sin_a = ray_table(scan)
+    pts, idx, starts, stops = segment_kernel(
+        scan_ranges(scan),
+        cos_a,
+        sin_a,
+        float(scan.angle_increment),
+        float(params.break_abs_m),
+        math.radians(params.break_angle_deg),
+        int(params.max_dropout_gap),
+    )
+    return Segmentation(pts, idx.astype(np.intp), starts.astype(np.intp), stops.astype(np.intp))
 
 
 # ----------------------------------------------------------------------------- rear fitting
@@ -202,26 +241,18 @@ class RearCandidate:
         return math.atan2(self.y_m, self.x_m)
 
 
-def _tls_line(points: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Total-least-squares line: (a point on it, unit direction)."""
-    centre = points.mean(axis=0)
-    d = points - centre
-    cov = d.T @ d
-    _, vecs = np.linalg.eigh(cov)
-    return centre, vecs[:, 1]
-
-
-def _intersect(p: FloatArray, u: FloatArray, q: FloatArray, v: FloatArray) -> FloatArray | None:
-    den = u[0] * v[1] - u[1] * v[0]
-    if abs(den) < 1e-6:
-        return None
-    w = q - p
-    t = (w[0] * v[1] - w[1] * v[0]) / den
-    return np.asarray(p + t * u, dtype=np.float64)
-
-
-def _project(point: FloatArray, p: FloatArray, u: FloatArray) -> FloatArray:
-    return np.asarray(p + float(np.dot(point - p, u)) * u, dtype=np.float64)
+def candidate_from_row(points: FloatArray, row: Sequence[float]) -> RearCandidate:
+    """A kernel's candidate row as a record; ``points`` are the cluster's points."""
+    return RearCandidate(
+        x_m=row[0],
+        y_m=row[1],
+        width_m=row[2],
+        heading_rad=row[3],
+        complete=row[4] != 0.0,
+        l_shape=row[5] != 0.0,
+        points=points,
+        alternative=row[6] != 0.0,
+    )
 
 
 def fit_rear(
@@ -243,108 +274,49 @@ def fit_rear(
     side closer to perpendicular to the hint as the rear, then the other side as the
     rear (``alternative=True``), for a tracker to choose by its prediction.
     """
-    k = len(points)
-    if k < params.min_points:
-        return []
-    a, b = points[0], points[-1]
-    chord = b - a
-    chord_len = float(np.hypot(*chord))
-    hint = np.array([math.cos(heading_hint_rad), math.sin(heading_hint_rad)])
-    if chord_len > 0 and k >= 5:
-        off = np.abs(chord[0] * (points[:, 1] - a[1]) - chord[1] * (points[:, 0] - a[0]))
-        off /= chord_len
-        j = int(np.argmax(off))
-        min_side = 2.0 * params.corner_abs_m
-        if (
-            off[j] > max(params.corner_abs_m, params.corner_rel * chord_len)
-            and 2 <= j <= k - 3
-            and float(np.hypot(*(points[j] - a))) >= min_side
-            and float(np.hypot(*(b - points[j]))) >= min_side
-        ):
-            p1, u1 = _tls_line(points[: j + 1])
-            p2, u2 = _tls_line(points[j:])
-            corner = _intersect(p1, u1, p2, u2)
-            # a box's sides meet at a right angle: nearly parallel fits are noise, a line
-            if corner is not None and abs(float(np.dot(u1, u2))) < _MAX_CORNER_COS:
-                right = (_project(a, p1, u1), corner, first_true, True)
-                left = (corner, _project(b, p2, u2), True, last_true)
-                options = [right, left]
-                if abs(float(np.dot(u1, hint))) > abs(float(np.dot(u2, hint))):
-                    options.reverse()
-                out = []
-                for n, (end_a, end_b, a_true, b_true) in enumerate(options):
-                    cand = _rear_candidate(
-                        end_a, end_b, a_true, b_true, points, expected_width_m, hint, params,
-                        ray_step_rad,
-                    )  # fmt: skip
-                    if cand is not None:
-                        out.append(replace(cand, l_shape=True, alternative=n == 1))
-                return out
-    p, u = _tls_line(points)
-    cand = _rear_candidate(
-        _project(a, p, u), _project(b, p, u), first_true, last_true, points,
-        expected_width_m, hint, params, ray_step_rad,
-    )  # fmt: skip
-    return [] if cand is None else [cand]
-
-
-def _rear_candidate(
-    end_a: FloatArray,
-    end_b: FloatArray,
-    a_true: bool,
-    b_true: bool,
-    points: FloatArray,
-    expected_width_m: float,
-    hint: FloatArray,
-    params: PerceptionParams,
-    ray_step_rad: float,
-) -> RearCandidate | None:
-    """Candidate for a rear face from its right end ``end_a`` to its left end ``end_b``."""
-    span = end_b - end_a
-    width = float(np.hypot(*span))
-    u_rear = span / width if width > 1e-9 else np.array([-hint[1], hint[0]])
-    if ray_step_rad > 0.0:
-        normal = np.array([u_rear[1], -u_rear[0]])
-
-        def pad(end: FloatArray) -> float:
-            r = float(np.hypot(*end))
-            cos_inc = abs(float(np.dot(end, normal))) / max(r, 1e-9)
-            return 0.5 * r * ray_step_rad / max(cos_inc, 0.3)
-
-        end_a = end_a - pad(end_a) * u_rear if a_true else end_a
-        end_b = end_b + pad(end_b) * u_rear if b_true else end_b
-        span = end_b - end_a
-        width = float(np.hypot(*span))
-    if width > params.max_width_factor * expected_width_m:
-        return None
-    centre = 0.5 * (end_a + end_b)
-    if width < expected_width_m:
-        if a_true and not b_true:
-            centre = end_a + 0.5 * expected_width_m * u_rear
-        elif b_true and not a_true:
-            centre = end_b - 0.5 * expected_width_m * u_rear
-    normal = np.array([u_rear[1], -u_rear[0]])  # right-hand normal of a right-to-left face
-    if float(np.dot(normal, centre)) < 0:
-        normal = -normal
-    return RearCandidate(
-        x_m=float(centre[0]),
-        y_m=float(centre[1]),
-        width_m=width,
-        heading_rad=math.atan2(normal[1], normal[0]),
-        complete=bool(a_true and b_true),
-        l_shape=False,
-        points=points,
+    pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+    rows = fit_kernel(
+        pts,
+        bool(first_true),
+        bool(last_true),
+        float(expected_width_m),
+        float(heading_hint_rad),
+        int(params.min_points),
+        float(params.corner_abs_m),
+        float(params.corner_rel),
+        float(params.max_width_factor),
+        float(ray_step_rad),
     )
+    return [candidate_from_row(points, row) for row in rows.tolist()]
 
 
-def _end_is_true(ranges: FloatArray, inside: int, outside: int) -> bool:
-    """Is the cluster end at sample ``inside`` a true edge (the ray beyond reads farther)?"""
-    if outside < 0 or outside >= ranges.size:
-        return False  # cut by the field of view
-    beyond = ranges[outside]
-    if math.isnan(beyond):
-        return False  # unknown
-    return bool(beyond > ranges[inside])  # +inf (nothing) or farther: a true edge
+def detect_rear_rows(
+    scan: LaserScan,
+    params: PerceptionParams,
+    expected_width_m: float,
+    heading_hint_rad: float = 0.0,
+    roi: tuple[float, float, float] | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """``detect_rears`` without the records: the scan's hit points (H, 2) in the sensor
+    frame, and one row per candidate with the columns of
+    ``platoon_sumo.kernels.perception.CANDIDATE_COLUMNS`` (centre x, y, width, heading,
+    complete, l_shape, alternative as 0 / 1, and the cluster's rows lo, hi of the
+    points)."""
+    roi_x, roi_y, roi_r = roi if roi is not None else (0.0, 0.0, 0.0)
+    cos_a, sin_a = ray_table(scan)
+    return detect(
+        scan_ranges(scan),
+        cos_a,
+        sin_a,
+        float(scan.angle_increment),
+        params_array(params),
+        float(expected_width_m),
+        float(heading_hint_rad),
+        roi is not None,
+        float(roi_x),
+        float(roi_y),
+        float(roi_r),
+    )
 
 
 def detect_rears(
@@ -359,29 +331,8 @@ def detect_rears(
     ``roi = (x, y, radius)`` (sensor frame, m) keeps only clusters with a point within
     ``radius`` of (x, y): only those are fitted, which bounds the cost on cluttered scans.
     """
-    seg = segment_scan(scan, params)
-    if len(seg) == 0:
-        return []
-    keep = (seg.stops - seg.starts) >= params.min_points
-    if roi is not None:
-        cx, cy, radius = roi
-        d2 = (seg.points[:, 0] - cx) ** 2 + (seg.points[:, 1] - cy) ** 2
-        keep &= np.minimum.reduceat(d2, seg.starts) <= radius * radius
-    ranges = np.asarray(scan.ranges, dtype=np.float64)
-    out: list[RearCandidate] = []
-    for c in np.flatnonzero(keep):
-        lo, hi = int(seg.starts[c]), int(seg.stops[c])
-        i_first, i_last = int(seg.index[lo]), int(seg.index[hi - 1])
-        out += fit_rear(
-            seg.points[lo:hi],
-            _end_is_true(ranges, i_first, i_first - 1),
-            _end_is_true(ranges, i_last, i_last + 1),
-            expected_width_m,
-            heading_hint_rad,
-            params,
-            abs(scan.angle_increment),
-        )
-    return out
+    pts, rows = detect_rear_rows(scan, params, expected_width_m, heading_hint_rad, roi)
+    return [candidate_from_row(pts[int(r[7]) : int(r[8])], r) for r in rows.tolist()]
 
 
 # ----------------------------------------------------------------------------- tracking
@@ -405,25 +356,69 @@ class SensorPose:
         return c * dx + s * dy, -s * dx + c * dy
 
 
+_P_INDEX = ((0, 1, 2, 3), (1, 4, 5, 6), (2, 5, 7, 8), (3, 6, 8, 9))
+"""Where entry (i, j) of the symmetric 4x4 covariance sits in its 10 stored numbers."""
+
+
+def _rows(candidates: Sequence[RearCandidate]) -> FloatArray:
+    """Candidates as kernel rows (the columns the tracker reads: x, y, complete)."""
+    rows = np.zeros((len(candidates), len(CANDIDATE_COLUMNS)))
+    for k, c in enumerate(candidates):
+        rows[k, 0], rows[k, 1], rows[k, 4] = c.x_m, c.y_m, float(c.complete)
+    return rows
+
+
 class RearTracker:
     """Constant-velocity Kalman filter on one vehicle's rear centre, in the world frame.
 
-    State ``[x, y, vx, vy]`` (m, m/s). Call ``step`` once per new scan.
+    State ``[x, y, vx, vy]`` (m, m/s). Call ``step`` once per new scan (or
+    ``step_rows`` with ``detect_rear_rows``' candidate rows). The filter's algebra runs
+    in ``platoon_sumo.kernels.perception.kalman_step``; ``x`` and ``P`` give the state
+    and its covariance as arrays.
     """
 
     def __init__(self, params: TrackerParams | None = None):
         self.params = params or TrackerParams()
+        self._state = np.zeros(STATE_SIZE)
+        """time, x, y, vx, vy, upper triangle of P (see ``kalman_step``)."""
         self.reset()
 
     def reset(self) -> None:
-        self.x = np.zeros(4)
-        self.P = np.eye(4)
+        self._set(0.0, (0.0, 0.0, 0.0, 0.0), 1.0, 1.0)
         self.active = False
         self.hits = 0
         self.missed = 0
-        self.time_s = 0.0
         self.last_hit_s = -math.inf
-        self.last_candidate: RearCandidate | None = None
+        self._last: RearCandidate | Callable[[], RearCandidate] | None = None
+
+    def _set(
+        self, time_s: float, x: tuple[float, float, float, float], var_p: float, var_v: float
+    ) -> None:
+        """State x with a diagonal covariance (var_p for the position, var_v the velocity)."""
+        self._state[:] = (time_s, *x, var_p, 0.0, 0.0, 0.0, var_p, 0.0, 0.0, var_v, 0.0, var_v)
+        self.time_s = time_s
+        self._x = x
+        self._position_variance = 2.0 * var_p
+        self._velocity_variance = 2.0 * var_v
+
+    @property
+    def x(self) -> FloatArray:
+        """The state ``[x, y, vx, vy]`` (a copy)."""
+        return np.array(self._x, dtype=np.float64)
+
+    @property
+    def P(self) -> FloatArray:
+        """The state covariance (4, 4) (a copy)."""
+        p = self._state[5:]
+        return np.array([[p[k] for k in row] for row in _P_INDEX], dtype=np.float64)
+
+    @property
+    def last_candidate(self) -> RearCandidate | None:
+        """The candidate last associated (or started on)."""
+        last = self._last
+        if callable(last):  # built when asked for
+            last = self._last = last()
+        return last
 
     @property
     def confirmed(self) -> bool:
@@ -431,42 +426,38 @@ class RearTracker:
 
     @property
     def position(self) -> tuple[float, float]:
-        return float(self.x[0]), float(self.x[1])
+        return self._x[0], self._x[1]
 
     @property
     def velocity(self) -> tuple[float, float]:
-        return float(self.x[2]), float(self.x[3])
+        return self._x[2], self._x[3]
+
+    @property
+    def position_variance(self) -> float:
+        """Trace of the position block of the covariance [m^2]."""
+        return self._position_variance
 
     def predicted(self, time_s: float) -> FloatArray:
         """State extrapolated to ``time_s`` (no covariance, no side effects)."""
+        return np.array(self.predicted_state(time_s), dtype=np.float64)
+
+    def predicted_state(self, time_s: float) -> tuple[float, float, float, float]:
+        """``predicted`` as four floats."""
         dt = max(time_s - self.time_s, 0.0)
-        return np.array([self.x[0] + dt * self.x[2], self.x[1] + dt * self.x[3], *self.x[2:]])
+        x, y, vx, vy = self._x
+        return x + dt * vx, y + dt * vy, vx, vy
 
     def heading_hint(self, fallback_rad: float) -> float:
         """Velocity direction when the speed estimate is significant, else ``fallback_rad``."""
         if not self.active:
             return fallback_rad
-        speed = math.hypot(self.x[2], self.x[3])
-        sigma = math.sqrt(max(self.P[2, 2] + self.P[3, 3], 0.0))
-        return math.atan2(self.x[3], self.x[2]) if speed > 2.0 * sigma else fallback_rad
+        _, _, vx, vy = self._x
+        speed = math.hypot(vx, vy)
+        sigma = math.sqrt(max(self._velocity_variance, 0.0))
+        return math.atan2(vy, vx) if speed > 2.0 * sigma else fallback_rad
 
-    def _predict(self, time_s: float) -> None:
-        dt = max(time_s - self.time_s, 0.0)
-        self.time_s = time_s
-        if dt == 0.0:
-            return
-        f = np.eye(4)
-        f[0, 2] = f[1, 3] = dt
-        q = self.params.accel_noise_mps2**2
-        g = np.array([[dt**4 / 4, dt**3 / 2], [dt**3 / 2, dt**2]]) * q
-        qm = np.zeros((4, 4))
-        qm[np.ix_([0, 2], [0, 2])] = g
-        qm[np.ix_([1, 3], [1, 3])] = g
-        self.x = f @ self.x
-        self.P = f @ self.P @ f.T + qm
-
-    def _noise(self, cand: RearCandidate) -> float:
-        sigma = self.params.meas_noise_m * (1.0 if cand.complete else 2.0)
+    def _noise(self, complete: bool) -> float:
+        sigma = self.params.meas_noise_m * (1.0 if complete else 2.0)
         return sigma * sigma
 
     def step(
@@ -478,30 +469,112 @@ class RearTracker:
         gate_floor_m: float,
     ) -> RearCandidate | None:
         """Process one scan's candidates; returns the one associated (or started), if any."""
-        p = self.params
         if not self.active:
-            best = self._start_candidate(candidates)
-            if best is not None:
-                zx, zy = pose.to_world(best.x_m, best.y_m)
-                var_v = p.init_speed_std_mps**2
-                self.x = np.array([zx, zy, own_velocity[0], own_velocity[1]])
-                self.P = np.diag([self._noise(best)] * 2 + [var_v, var_v])
-                self.active, self.hits, self.missed = True, 1, 0
-                self.time_s = self.last_hit_s = time_s
-                self.last_candidate = best
-            return best
-        self._predict(time_s)
-        best, best_d2 = None, math.inf
-        s_pos = self.P[:2, :2]
-        for cand in candidates:
-            z = np.array(pose.to_world(cand.x_m, cand.y_m))
-            nu = z - self.x[:2]
-            s = s_pos + np.eye(2) * self._noise(cand)
-            d2 = float(nu @ np.linalg.solve(s, nu))
-            inside = d2 <= p.gate_chi2 or float(np.hypot(*nu)) <= gate_floor_m
-            if inside and d2 < best_d2:
-                best, best_d2 = cand, d2
-        if best is None:
+            k = self._start(
+                time_s,
+                [(c.x_m, c.y_m, c.complete, c.alternative) for c in candidates],
+                (pose.x_m, pose.y_m, pose.heading_rad),
+                own_velocity,
+            )
+        else:
+            k = self._associate(
+                time_s, _rows(candidates), (pose.x_m, pose.y_m, pose.heading_rad), gate_floor_m
+            )
+        if k < 0:
+            return None
+        self._last = candidates[k]
+        return candidates[k]
+
+    def step_rows(
+        self,
+        time_s: float,
+        points: FloatArray,
+        rows: FloatArray,
+        pose: tuple[float, float, float],
+        own_velocity: tuple[float, float],
+        gate_floor_m: float,
+    ) -> int:
+        """``step`` on the candidate rows of ``detect_rear_rows`` (with its ``points``) and
+        a sensor pose (x, y, heading): the index of the row associated (or started on),
+        or -1."""
+        if not self.active:
+            items = [(r[0], r[1], r[4] != 0.0, r[6] != 0.0) for r in rows.tolist()]
+            k = self._start(time_s, items, pose, own_velocity)
+        else:
+            k = self._associate(time_s, rows, pose, gate_floor_m)
+        if k >= 0:
+            row = rows[k]
+            self._last = lambda: candidate_from_row(points[int(row[7]) : int(row[8])], row.tolist())
+        return k
+
+    def _start(
+        self,
+        time_s: float,
+        candidates: list[tuple[float, float, bool, bool]],
+        pose: tuple[float, float, float],
+        own_velocity: tuple[float, float],
+    ) -> int:
+        """Start a track on the candidate (x, y, complete, alternative; sensor frame)
+        closest to straight ahead in the start gate, if any."""
+        p = self.params
+        best, best_bearing = -1, math.inf
+        for k, (cx, cy, _, alternative) in enumerate(candidates):
+            in_gate = 0.0 < cx <= p.start_range_max_m and abs(cy) <= p.start_lateral_m
+            if in_gate and not alternative:
+                bearing = abs(math.atan2(cy, cx))
+                if bearing < best_bearing:
+                    best, best_bearing = k, bearing
+        if best >= 0:
+            cx, cy, complete, _ = candidates[best]
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            zx, zy = pose[0] + c * cx - s * cy, pose[1] + s * cx + c * cy
+            var_v = p.init_speed_std_mps**2
+            v = (zx, zy, float(own_velocity[0]), float(own_velocity[1]))
+            self._set(time_s, v, self._noise(complete), var_v)
+            self.active, self.hits, self.missed = True, 1, 0
+            self.last_hit_s = time_s
+        return best
+
+    def _associate(
+        self,
+        time_s: float,
+        rows: FloatArray,
+        pose: tuple[float, float, float],
+        gate_floor_m: float,
+    ) -> int:
+        """Predict, gate and update an active track with candidate rows (sensor frame)."""
+        p = self.params
+        k, x, y, vx, vy, var_p, var_v = kalman_step(
+            self._state, float(time_s), rows, float(pose[0]), float(pose[1]),
+            math.cos(pose[2]), math.sin(pose[2]), float(p.accel_noise_mps2),
+            float(p.meas_noise_m), float(p.gate_chi2), float(gate_floor_m),
+        )  # fmt: skip
+        return self.record_step(time_s, k, (x, y, vx, vy), var_p, var_v)
+
+    @property
+    def state_array(self) -> FloatArray:
+        """The filter's state as ``kalman_step`` takes it (updated in place: a kernel that
+        runs ``kalman_step`` on it reports with ``record_step``)."""
+        return self._state
+
+    def record_step(
+        self,
+        time_s: float,
+        k: int,
+        x: tuple[float, float, float, float],
+        var_p: float,
+        var_v: float,
+        candidate: Callable[[], RearCandidate] | None = None,
+    ) -> int:
+        """Book a ``kalman_step`` of an active track on ``state_array`` at ``time_s``: the
+        row it associated (-1: none), its results (state, position and velocity
+        variances), and what builds the candidate associated (for ``last_candidate``).
+        Returns the row, or -1 (the track may have been lost)."""
+        p = self.params
+        self.time_s = time_s
+        self._x = x
+        self._position_variance, self._velocity_variance = var_p, var_v
+        if k < 0:
             self.missed += 1
             if (
                 not self.confirmed  # a tentative track must hit on every scan
@@ -509,27 +582,10 @@ class RearTracker:
                 or time_s - self.last_hit_s > p.lost_after_s
             ):
                 self.reset()
-            return None
-        z = np.array(pose.to_world(best.x_m, best.y_m))
-        h = np.zeros((2, 4))
-        h[0, 0] = h[1, 1] = 1.0
-        s = self.P[:2, :2] + np.eye(2) * self._noise(best)
-        gain = self.P @ h.T @ np.linalg.inv(s)
-        self.x = self.x + gain @ (z - self.x[:2])
-        self.P = (np.eye(4) - gain @ h) @ self.P
-        self.P = 0.5 * (self.P + self.P.T)
+            return -1
         self.hits += 1
         self.missed = 0
         self.last_hit_s = time_s
-        self.last_candidate = best
-        return best
-
-    def _start_candidate(self, candidates: list[RearCandidate]) -> RearCandidate | None:
-        p = self.params
-        best, best_bearing = None, math.inf
-        for cand in candidates:
-            in_gate = 0.0 < cand.x_m <= p.start_range_max_m and abs(cand.y_m) <= p.start_lateral_m
-            in_gate = in_gate and not cand.alternative
-            if in_gate and abs(cand.bearing_rad) < best_bearing:
-                best, best_bearing = cand, abs(cand.bearing_rad)
-        return best
+        if candidate is not None:
+            self._last = candidate
+        return int(k)

@@ -73,7 +73,7 @@ def check_hits_against_oracle(config, origin, heading, rects, segs) -> None:
     exact, low, high = per_obstacle_oracle(config, origin, heading, rects, segs)
     with np.errstate(invalid="ignore"):  # inf - inf where an obstacle is missed
         well_posed = (low == high) | (high - low <= WELL_POSED_M)
-    # nearest possible distance of each obstacle: exact where well-posed, else bracketed
+    # each obstacle's distance: exact where well-posed, else its lower and upper bounds
     far = np.where(well_posed, exact, high)
     near = np.where(well_posed, exact, low)
     for i in range(config.samples):
@@ -210,8 +210,8 @@ def test_predecessor_partly_occluded_by_a_closer_car() -> None:
     seen = np.isfinite(alone[1])
     assert on_pred.sum() == np.count_nonzero(np.abs(ranges[seen] - alone[1][seen]) <= 1e-6)
     assert (hits[~np.isfinite(ranges)] == -1).all()
-    left = np.flatnonzero(on_pred)  # the occluded part is the predecessor's left side
-    assert config.angles_rad[left].max() < config.angles_rad[np.flatnonzero(on_cut)].min()
+    # the cut-in hides the predecessor's left side: what is still seen lies to its right
+    assert config.angles_rad[on_pred].max() < config.angles_rad[on_cut].min()
 
 
 def test_sensor_excluded_from_its_own_rectangle() -> None:

@@ -1,0 +1,63 @@
+"""Route-path kernels: nearest point of a polyline, searched within a window."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def project_kernel(
+    xy: np.ndarray,
+    widths: np.ndarray,
+    spacing: float,
+    length: float,
+    use_hint: bool,
+    s_hint: float,
+    window: float,
+    x: float,
+    y: float,
+) -> tuple[float, float, float]:
+    """Nearest point to (x, y) of the polyline ``xy`` (n, 2) whose vertex i lies at arc
+    length ``i * spacing`` (the last one at ``length``): (arc length, signed lateral
+    offset, left +, and ``widths`` at the vertex at or before it). With ``use_hint``, only
+    the segments within ``window`` (plus one segment) of the one at ``s_hint`` are
+    searched. The first of equally near segments wins."""
+    n_seg = xy.shape[0] - 1
+    lo = 0
+    hi = n_seg
+    if use_hint:
+        w = int(window / spacing) + 1
+        centre = int(min(max(s_hint // spacing, 0.0), n_seg - 1.0))
+        lo = max(0, centre - w)
+        hi = min(n_seg, centre + w + 1)
+    best = np.inf
+    best_k = lo
+    best_t = 0.0
+    best_len2 = 0.0
+    for k in range(lo, hi):
+        ax = xy[k, 0]
+        ay = xy[k, 1]
+        dx = xy[k + 1, 0] - ax
+        dy = xy[k + 1, 1] - ay
+        len2 = dx * dx + dy * dy
+        t = ((x - ax) * dx + (y - ay) * dy) / max(len2, 1e-18)
+        t = min(max(t, 0.0), 1.0)
+        cx = ax + dx * t - x
+        cy = ay + dy * t - y
+        d2 = cx * cx + cy * cy
+        if d2 < best:
+            best, best_k, best_t, best_len2 = d2, k, t, len2
+        elif d2 != d2:  # NaN (a NaN point): the first one wins, as np.argmin has it
+            best, best_k, best_t, best_len2 = d2, k, t, len2
+            break
+    ax = xy[best_k, 0]
+    ay = xy[best_k, 1]
+    dx = xy[best_k + 1, 0] - ax
+    dy = xy[best_k + 1, 1] - ay
+    cross = dx * (y - ay) - dy * (x - ax)
+    s = min(best_k * spacing + best_t * math.sqrt(best_len2), length)
+    width = widths[min(int(s // spacing), widths.size - 1)]
+    return s, math.copysign(math.sqrt(best), cross), width
