@@ -5,6 +5,7 @@ commanded speed (lane)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -67,7 +68,8 @@ class FakeBackend:
         centres = [self.vehicles[v] for v in vehicle_ids]
         ids = list(vehicle_ids) + [
             vid for vid, v in self.vehicles.items()
-            if vid not in vehicle_ids and any(abs(v.x_m - c.x_m) <= radius_m for c in centres)
+            if vid not in vehicle_ids
+            and any(math.hypot(v.x_m - c.x_m, v.y_m - c.y_m) <= radius_m for c in centres)
         ]  # fmt: skip
         vs = [self.vehicles[v] for v in ids]
         arr = lambda f: np.array([getattr(v, f) for v in vs], dtype=np.float64)  # noqa: E731

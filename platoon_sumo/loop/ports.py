@@ -29,8 +29,8 @@ class Backend(Protocol):
     def step(self) -> None: ...
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
-        """The given vehicles and every vehicle on a lane within `radius_m` of one of
-        them (positions are front bumpers: a footprint reaches a length behind)."""
+        """The given vehicles and every vehicle whose front bumper is within `radius_m`
+        of one of theirs (a footprint reaches a length behind its front bumper)."""
         ...
 
     def vehicle_count(self) -> int: ...

@@ -7,9 +7,10 @@ Everything here is computed the same way online (the recorder, every step) and o
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
+
+from platoon_sumo.kernels.trail import trail_deviation
 
 #: Below this speed [m/s] the time headway is undefined (a standing vehicle has no headway).
 HEADWAY_MIN_SPEED_MPS = 0.01
@@ -63,45 +64,50 @@ def l2_gain(sum_sq_out: float, sum_sq_in: float) -> float | None:
 class PathTrail:
     """The recent path of one vehicle's front bumper, to measure its follower against.
 
-    Points are kept every `spacing_m` of travel, at most `max_points` of them; points the
-    follower has passed are dropped by `deviation`. Memory is bounded by `max_points`.
+    Points are kept every `spacing_m` of travel, at most `max_points` of them (the
+    oldest go first); points the follower has passed are dropped by `deviation`. The
+    points live in one array (rows `lo:hi`), compacted when its end is reached.
     """
 
     def __init__(self, spacing_m: float, max_points: int = 5000):
         self.spacing_m = spacing_m
-        self._points: deque[tuple[float, float]] = deque(maxlen=max_points)
+        self.max_points = max_points
+        self._buf = np.empty((min(2 * max_points, 64), 2))
+        self._lo = self._hi = 0
 
     def __len__(self) -> int:
-        return len(self._points)
+        return self._hi - self._lo
 
     def append(self, x_m: float, y_m: float) -> None:
         """Record a position if it is at least `spacing_m` from the last kept point."""
-        pts = self._points
-        if not pts or math.hypot(x_m - pts[-1][0], y_m - pts[-1][1]) >= self.spacing_m:
-            pts.append((x_m, y_m))
+        lo, hi, buf = self._lo, self._hi, self._buf
+        if hi > lo and math.hypot(x_m - buf[hi - 1, 0], y_m - buf[hi - 1, 1]) < self.spacing_m:
+            return
+        if hi - lo == self.max_points:
+            lo = self._lo = lo + 1
+        if hi == len(buf):
+            n = hi - lo
+            if 2 * n > len(buf):  # more than half full: grow (up to twice max_points)
+                self._buf = buf = np.concatenate([buf[lo:hi], np.empty((len(buf), 2))])
+            else:
+                buf[:n] = buf[lo:hi]
+            self._lo, hi = 0, n
+        buf[hi] = x_m, y_m
+        self._hi = hi + 1
 
     def keep_last(self, n: int) -> None:
         """Drop all but the newest `n` points."""
-        while len(self._points) > n:
-            self._points.popleft()
+        self._lo = max(self._lo, self._hi - n)
 
     def deviation(self, x_m: float, y_m: float, prune: bool = True) -> float | None:
         """Distance [m] from (x, y) to the trail where the point is alongside it; None if
         it is behind the trail's start or past its end. With `prune`, drop the points
         before the nearest segment (the follower has passed them)."""
-        if len(self._points) < 2:
+        if self._hi - self._lo < 2:
             return None
-        pts = np.asarray(self._points, dtype=np.float64)
-        a, e = pts[:-1], np.diff(pts, axis=0)
-        ee = np.einsum("ij,ij->i", e, e)
-        w = np.array([x_m, y_m]) - a
-        raw = np.divide(np.einsum("ij,ij->i", w, e), ee, out=np.zeros(len(e)), where=ee > 0)
-        t = np.clip(raw, 0.0, 1.0)
-        d = np.hypot(a[:, 0] + t * e[:, 0] - x_m, a[:, 1] + t * e[:, 1] - y_m)
-        j = int(np.argmin(d))
-        if (j == 0 and raw[0] <= 1e-9) or (j == len(e) - 1 and raw[-1] >= 1.0 - 1e-9):
+        j, d = trail_deviation(self._buf[self._lo : self._hi], x_m, y_m)
+        if j < 0:
             return None
         if prune:
-            for _ in range(j):
-                self._points.popleft()
-        return float(d[j])
+            self._lo += j
+        return d

@@ -12,7 +12,7 @@ import itertools
 import math
 import os
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import libsumo
@@ -21,6 +21,7 @@ import sumo
 from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
+from platoon_sumo.kernels.neighbours import within_radius
 from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 #: SUMO's laneChangeMode bits: strategic changes (1) respecting others' speed and braking
@@ -134,47 +135,57 @@ class SumoBackend:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
-        """The given vehicles and every vehicle whose front bumper is on a lane passing
-        within `radius_m` of one of them (plain getters: the fastest reads in libsumo).
+        """The given vehicles and every vehicle whose front bumper lies within `radius_m`
+        of one of theirs (plain getters: the fastest reads in libsumo).
 
-        Lanes near a point come from a grid over the lanes' shapes built once, so the
-        cost follows the traffic around the platoons, not the network's size."""
+        Candidates come from the lanes near the vehicles (a grid over the lanes' shapes
+        built once), each known with its lane from the lane's listing; only their
+        positions are read before the distance filter, so the cost follows the traffic
+        around the platoons, not the network's size."""
         veh = libsumo.vehicle
         wanted = list(dict.fromkeys(vehicle_ids))
         if not wanted:
             return _empty_world(self.time_s)
         centres = np.array([veh.getPosition(vid) for vid in wanted], dtype=np.float64)
-        ids = list(wanted)
         seen = set(wanted)
+        others: list[str] = []
+        other_lanes: list[str] = []
         for lane in self._lanes_near(centres, radius_m):
             for vid in libsumo.lane.getLastStepVehicleIDs(lane):
                 if vid not in seen:
                     seen.add(vid)
-                    ids.append(vid)
-        return self._read(tuple(ids))
+                    others.append(vid)
+                    other_lanes.append(lane)
+        near: list[int] = []
+        if others:
+            positions = np.array([veh.getPosition(vid) for vid in others], dtype=np.float64)
+            near = np.flatnonzero(within_radius(centres, positions, radius_m)).tolist()
+            centres = np.concatenate([centres, positions[near]])
+        ids = (*wanted, *(others[k] for k in near))
+        lanes = (*(veh.getLaneID(vid) for vid in wanted), *(other_lanes[k] for k in near))
+        return self._read(ids, centres, lanes)
 
-    def _read(self, ids: tuple[str, ...]) -> WorldSnapshot:
+    def _read(
+        self, ids: tuple[str, ...], positions: NDArray[np.float64], lanes: tuple[str, ...]
+    ) -> WorldSnapshot:
         veh = libsumo.vehicle
         n = len(ids)
-        pos = np.empty((n, 2))
         angle = np.empty(n)
         speed = np.empty(n)
         dims = np.empty((n, 2))
         geometry = self._geometry
         for i, vid in enumerate(ids):
-            pos[i] = veh.getPosition(vid)
             angle[i] = veh.getAngle(vid)
             speed[i] = veh.getSpeed(vid)
             geom = geometry.get(vid)
             if geom is None:
                 geom = geometry[vid] = (veh.getLength(vid), veh.getWidth(vid))
             dims[i] = geom
-        lanes = tuple(veh.getLaneID(vid) for vid in ids)
         return WorldSnapshot(
             time_s=self.time_s,
             ids=ids,
-            front_x_m=pos[:, 0],
-            front_y_m=pos[:, 1],
+            front_x_m=positions[:, 0].copy(),
+            front_y_m=positions[:, 1].copy(),
             yaw_rad=np.radians(90.0 - angle),
             length_m=dims[:, 0],
             width_m=dims[:, 1],
@@ -427,6 +438,7 @@ class _LaneGrid:
     cell_m: float
     cells: dict[tuple[int, int], tuple[int, ...]]
     lane_ids: tuple[str, ...]
+    around: dict[tuple[int, int, int], frozenset[int]] = field(default_factory=dict)
 
     @classmethod
     def build(cls, cell_m: float) -> _LaneGrid:
@@ -445,11 +457,23 @@ class _LaneGrid:
 
     def near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
         reach = math.ceil(radius_m / self.cell_m)
-        base = np.floor(points / self.cell_m).astype(np.int64)
-        centres = {(int(x), int(y)) for x, y in base}
+        base = set(map(tuple, np.floor(points / self.cell_m).astype(np.int64).tolist()))
         found: set[int] = set()
-        for cx, cy in centres:
-            for dx in range(-reach, reach + 1):
-                for dy in range(-reach, reach + 1):
-                    found.update(self.cells.get((cx + dx, cy + dy), ()))
+        for cell in base:
+            found |= self._around(cell, reach)
         return [self.lane_ids[k] for k in sorted(found)]
+
+    def _around(self, cell: tuple[int, ...], reach: int) -> frozenset[int]:
+        """Lanes in the cells within `reach` cells of `cell` (remembered: platoons pass
+        through the same cells step after step)."""
+        key = (cell[0], cell[1], reach)
+        lanes = self.around.get(key)
+        if lanes is None:
+            cx, cy = key[0], key[1]
+            lanes = self.around[key] = frozenset(
+                k
+                for dx in range(-reach, reach + 1)
+                for dy in range(-reach, reach + 1)
+                for k in self.cells.get((cx + dx, cy + dy), ())
+            )
+        return lanes

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from platoon_sumo.metrics.kernels import (
     PathTrail,
@@ -70,3 +73,59 @@ def test_trail_memory_is_bounded():
     assert len(trail) == 100
     assert trail.deviation(4990.2, 1.0) == pytest.approx(1.0)
     assert math.isfinite(trail.spacing_m)
+
+
+def _deviation_oracle(points: list[tuple[float, float]], x: float, y: float):
+    """Brute force in numpy: nearest segment and distance, None outside the trail."""
+    pts = np.asarray(points, dtype=np.float64)
+    a, e = pts[:-1], np.diff(pts, axis=0)
+    ee = (e * e).sum(axis=1)
+    raw = np.divide(
+        ((np.array([x, y]) - a) * e).sum(axis=1), ee, out=np.zeros(len(e)), where=ee > 0
+    )
+    t = np.clip(raw, 0.0, 1.0)
+    d = np.hypot(a[:, 0] + t * e[:, 0] - x, a[:, 1] + t * e[:, 1] - y)
+    j = int(np.argmin(d))
+    if (j == 0 and raw[0] <= 1e-9) or (j == len(e) - 1 and raw[-1] >= 1.0 - 1e-9):
+        return None
+    return j, float(d[j])
+
+
+coord = st.floats(-50.0, 50.0, allow_nan=False)
+
+
+@given(
+    points=st.lists(st.tuples(coord, coord), min_size=2, max_size=40),
+    x=coord,
+    y=coord,
+)
+def test_trail_deviation_matches_brute_force(points, x, y):
+    trail = PathTrail(spacing_m=0.0, max_points=1000)
+    for px, py in points:
+        trail.append(px, py)
+    expected = _deviation_oracle(points, x, y)
+    before = len(trail)
+    got = trail.deviation(x, y)
+    if expected is None:
+        assert got is None and len(trail) == before
+    else:
+        assert got == pytest.approx(expected[1], abs=1e-9)
+        assert len(trail) == before - expected[0]  # the passed points are gone
+
+
+@given(st.integers(1, 30), st.lists(st.integers(0, 3), max_size=300))
+def test_trail_keeps_the_newest_points_in_order(max_points, moves):
+    """Appends, prunes and compactions keep exactly the newest points, oldest first."""
+    trail = PathTrail(spacing_m=0.0, max_points=max_points)
+    kept: list[tuple[float, float]] = []
+    for k, move in enumerate(moves):
+        if move == 0 and len(kept) > 1:
+            trail.keep_last(1)
+            kept = kept[-1:]
+        else:
+            trail.append(float(k), 0.0)
+            kept = [*kept, (float(k), 0.0)][-max_points:]
+        assert len(trail) == len(kept)
+    if len(kept) >= 2:
+        assert trail.deviation(kept[0][0] + 0.5, 1.0, prune=False) == pytest.approx(1.0)
+        assert trail.deviation(kept[-1][0] - 0.5, -2.0, prune=False) == pytest.approx(2.0)
