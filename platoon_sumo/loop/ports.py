@@ -63,7 +63,11 @@ class Backend(Protocol):
 
     def route_contexts(
         self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
-    ) -> list[RouteContext]: ...
+    ) -> list[RouteContext]:
+        """Per vehicle: (next traffic light on its route, the nearest vehicle ahead on its
+        lanes within its horizon, the junction link at the end of its lane if that end is
+        within its horizon), as SUMO sees them after the last step."""
+        ...
 
     def move(
         self,

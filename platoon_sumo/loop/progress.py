@@ -26,10 +26,14 @@ def crossed_stop_line(
     return not same and previous.distance_m <= travelled_m + 0.25
 
 
-def ahead_horizon_m(m: Member) -> float:
-    """Look as far ahead as a full comfortable stop from top speed needs, and more."""
-    vehicle = m.platoon.config.vehicle
-    return max(20.0 * vehicle.length_m, vehicle.max_speed_mps**2 / vehicle.max_decel_mps2 * 2)
+def ahead_horizon_m(m: Member, dt_s: float) -> float:
+    """How far SUMO's leader and junction link are read: farther than any stop from
+    top speed (the vehicle's own braking, twice, or the supervisor's comfortable
+    braking to its stop margin) and at least 20 vehicle lengths."""
+    vehicle, supervisor = m.platoon.config.vehicle, m.platoon.config.supervisor
+    v = vehicle.max_speed_mps
+    comfortable = v * v / (2 * supervisor.comfort_decel_mps2) + supervisor.stop_margin_m + v * dt_s
+    return max(20.0 * vehicle.length_m, v * v / vehicle.max_decel_mps2 * 2, comfortable)
 
 
 class RouteProgress:
@@ -45,7 +49,7 @@ class RouteProgress:
             travelled.append(max(point.s_m - m.route_s_m, 0.0))
             m.route_s_m, m.lateral_offset_m = point.s_m, point.lateral_offset_m
         contexts = ctx.backend.route_contexts(
-            [m.id for m in members], [ahead_horizon_m(m) for m in members]
+            [m.id for m in members], [ahead_horizon_m(m, ctx.dt_s) for m in members]
         )
         for m, travelled_m, (signal, ahead, link) in zip(members, travelled, contexts, strict=True):
             previous, m.signal = m.signal, signal

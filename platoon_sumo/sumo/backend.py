@@ -103,6 +103,7 @@ class SumoBackend:
         self._running = False
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
+        self._lane_lengths: dict[str, float] = {}
 
     def start(self) -> None:
         try:
@@ -371,10 +372,11 @@ class SumoBackend:
     def route_contexts(
         self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
     ) -> list[tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]]:
-        """For each vehicle: the next light, SUMO's leader within the horizon, the link
-        at the end of its lane (SUMO's view, read after the last step)."""
+        """For each vehicle: the next light, SUMO's leader and the link at the end of its
+        lane, the last two within the vehicle's horizon (SUMO's view, read after the last
+        step)."""
         return [
-            (self.next_signal(vid), self.vehicle_ahead(vid, h), self.link_ahead(vid))
+            (self.next_signal(vid), self.vehicle_ahead(vid, h), self.link_ahead(vid, h))
             for vid, h in zip(vehicle_ids, horizons_m, strict=True)
         ]
 
@@ -385,17 +387,25 @@ class SumoBackend:
         tls_id, link_index, distance, state = tls[0]
         return SignalAhead(str(tls_id), int(link_index), str(state), float(distance))
 
-    def link_ahead(self, vehicle_id: str) -> LinkAhead | None:
-        """The link at the end of the vehicle's lane (None inside a junction or at route end)."""
+    def link_ahead(self, vehicle_id: str, horizon_m: float = math.inf) -> LinkAhead | None:
+        """The link at the end of the vehicle's lane (None inside a junction, at the route's
+        end, or when the lane ends farther than `horizon_m`). SUMO's link query is the
+        dearest of the per-vehicle reads (it also slows SUMO's next step), so it is only
+        made when the link is within reach."""
         veh = libsumo.vehicle
         lane = veh.getLaneID(vehicle_id)
         if not lane or lane.startswith(":"):
+            return None
+        length = self._lane_lengths.get(lane)
+        if length is None:
+            length = self._lane_lengths[lane] = float(libsumo.lane.getLength(lane))
+        remaining = length - veh.getLanePosition(vehicle_id)
+        if remaining > horizon_m:
             return None
         links = veh.getNextLinks(vehicle_id)
         if not links:
             return None
         _, has_prio, is_open, has_foe, _, state, _, _ = links[0]
-        remaining = libsumo.lane.getLength(lane) - veh.getLanePosition(vehicle_id)
         return LinkAhead(str(state), bool(has_prio), bool(is_open), bool(has_foe), remaining)
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
