@@ -82,6 +82,9 @@ class FakeBackend:
     def vehicle_count(self) -> int:
         return len(self.vehicles)
 
+    def largest_vehicle_m(self) -> float:
+        return max((v.length_m + v.width_m for v in self.vehicles.values()), default=0.0)
+
     def add_vehicle(
         self, vehicle_id: str, edges: Sequence[str], type_id: str, depart_lane: int,
         depart_pos_m: float, sumo_drives: bool,

@@ -3,13 +3,12 @@ around the platoons, read once, in batch."""
 
 from __future__ import annotations
 
+from platoon_sumo.actuation import ACTUATORS
 from platoon_sumo.events import EventKind, Onset
 from platoon_sumo.geometry import footprints_from_front_bumper
 from platoon_sumo.loop.context import StepContext
+from platoon_sumo.scenario import RunPlan
 
-#: Besides the sensors' reach, vehicles this far from a platoon vehicle are read: any
-#: vehicle whose footprint could touch it (SUMO positions are front bumpers) [m].
-CONTACT_REACH_M = 30.0
 #: Planar lane changes look this far along the target lanes for gaps [m].
 LANE_CHANGE_REACH_M = 100.0
 
@@ -30,21 +29,41 @@ class SumoReports:
 
 
 class ObserveWorld:
-    """The platoon vehicles and every vehicle within the reach of their sensors (plus
-    `CONTACT_REACH_M`) after the step. Nothing is read while no platoon is in the
-    network."""
+    """The platoon vehicles and every vehicle that one of their sensors could see or
+    whose footprint could touch one of them, after the step. Positions are front
+    bumpers, so the radius around each platoon vehicle's front bumper is the longest
+    sensor range (or planar lane changes' look-out) plus the largest platoon vehicle and
+    the largest vehicle that entered the network (length + width each: a sensor may sit
+    anywhere on its car, a body reaches a length behind its front bumper). Nothing is
+    read while no platoon is in the network."""
+
+    def __init__(self) -> None:
+        self._own_reach_m: float | None = None
 
     def __call__(self, ctx: StepContext) -> None:
         backend = ctx.backend
         ids = ctx.fleet.ids() + [vid for vid in backend.departed_ids() if vid in ctx.waiting]
-        reach = 0.0
-        for m in ctx.fleet:
-            for sensor in m.plan.sensors:
-                reach = max(reach, float(getattr(sensor.params, "range_max_m", 0.0)))
-            if not m.actuator.sumo_drives:
-                reach = max(reach, LANE_CHANGE_REACH_M)
-        ctx.world = backend.snapshot(ids, reach + CONTACT_REACH_M)
+        radius = 0.0
+        if ids:
+            if self._own_reach_m is None:
+                self._own_reach_m = own_reach_m(ctx.run.plan)
+            radius = self._own_reach_m + backend.largest_vehicle_m()
+        ctx.world = backend.snapshot(ids, radius)
         ctx.sumo_vehicles = backend.vehicle_count()
+
+
+def own_reach_m(plan: RunPlan) -> float:
+    """Longest sensor range (or planar look-out) plus the largest platoon vehicle [m]."""
+    reach = size = 0.0
+    for platoon in plan.platoons:
+        vehicle = platoon.config.vehicle
+        size = max(size, vehicle.length_m + vehicle.width_m)
+        if not ACTUATORS.get(platoon.config.actuation).sumo_drives:
+            reach = max(reach, LANE_CHANGE_REACH_M)
+        for member in platoon.members:
+            for sensor in member.sensors:
+                reach = max(reach, float(getattr(sensor.params, "range_max_m", 0.0)))
+    return reach + size
 
 
 class Footprints:

@@ -35,6 +35,10 @@ class Backend(Protocol):
 
     def vehicle_count(self) -> int: ...
 
+    def largest_vehicle_m(self) -> float:
+        """Largest length + width [m] of any vehicle type in the simulation."""
+        ...
+
     def add_vehicle(
         self,
         vehicle_id: str,

@@ -104,6 +104,8 @@ class SumoBackend:
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
+        self._type_sizes: dict[str, float] = {}
+        self._largest_m = 0.0
 
     def start(self) -> None:
         try:
@@ -134,6 +136,13 @@ class SumoBackend:
             libsumo.simulationStep()
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
+        veh, sizes = libsumo.vehicle, self._type_sizes
+        for vid in libsumo.simulation.getDepartedIDList():
+            type_id = veh.getTypeID(vid)
+            if type_id not in sizes:
+                vt = libsumo.vehicletype
+                sizes[type_id] = float(vt.getLength(type_id) + vt.getWidth(type_id))
+                self._largest_m = max(self._largest_m, sizes[type_id])
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
         """The given vehicles and every vehicle whose front bumper lies within `radius_m`
@@ -205,6 +214,12 @@ class SumoBackend:
 
     def vehicle_count(self) -> int:
         return int(libsumo.vehicle.getIDCount())
+
+    def largest_vehicle_m(self) -> float:
+        """Largest length + width [m] of the vehicle types that have entered the network
+        (the types of departing vehicles are read after each step; SUMO's unused
+        built-in types, such as a 135 m train, do not count)."""
+        return self._largest_m
 
     def add_vehicle(
         self,

@@ -117,11 +117,14 @@ def test_departures_build_members_from_sumo_poses_and_emit_departed(write_scenar
 def test_world_holds_platoon_vehicles_and_their_neighbours_only(write_scenario):
     backend = FakeBackend()
     ctx = context(plan(write_scenario), backend)
-    backend.add_human("near", 120.0, 10.0)  # within 30 m: could touch
+    # no sensors: the radius is the largest platoon vehicle plus the largest vehicle
+    # (4.5 + 1.8 m each here), 12.6 m from a front bumper
+    backend.add_human("near", 110.0, 0.0)  # front 10 m ahead of p.0's
+    backend.add_human("beyond", 113.0, 0.0)  # 13 m: out of reach
     backend.add_human("far", 900.0, 10.0)
     departed(ctx, backend)
     assert set(ctx.world.ids) == {"p.0", "p.1", "near"}
-    assert ctx.sumo_vehicles == 4
+    assert ctx.sumo_vehicles == 5
     assert ctx.footprints.shape == (3, 5)
 
 
