@@ -36,7 +36,12 @@ class LaserSensor:
         scans = []
         for k in range(len(batch.vehicle_ids)):
             pred = int(batch.predecessor_index[k])
-            on_pred = int(np.count_nonzero(hits[k] == pred)) if pred >= 0 else None
+            # a return: a finite range (closer than range_min reads -inf, no range)
+            on_pred = (
+                int(np.count_nonzero((hits[k] == pred) & np.isfinite(ranges[k])))
+                if pred >= 0
+                else None
+            )
             scans.append(
                 LaserScan.from_ranges(
                     laser,
