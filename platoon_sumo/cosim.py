@@ -145,7 +145,7 @@ class CoSimulation:
             sensed_footprints=ctx.sensed_footprints,
             vehicles=tuple(vehicle_record(m) for m in ctx.fleet),
             events=tuple(ctx.events),
-            sumo_vehicles=ctx.sumo_vehicles,
+            sumo_vehicles=self.backend.vehicle_count(),
         )
         for hook in self.hooks:
             hook.on_step(record)

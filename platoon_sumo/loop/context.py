@@ -65,7 +65,6 @@ class StepContext:
     """Platoons not inserted yet (due ones wait for room on their first lane)."""
     waiting: dict[str, MemberPlan] = field(default_factory=dict)
     """Members handed to SUMO that have not departed yet."""
-    sumo_vehicles: int = 0
     steps: int = 0
     departed_total: int = 0
     arrived_total: int = 0

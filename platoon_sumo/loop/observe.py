@@ -49,7 +49,6 @@ class ObserveWorld:
                 self._own_reach_m = own_reach_m(ctx.run.plan)
             radius = self._own_reach_m + backend.largest_vehicle_m()
         ctx.world = backend.snapshot(ids, radius)
-        ctx.sumo_vehicles = backend.vehicle_count()
 
 
 def own_reach_m(plan: RunPlan) -> float:

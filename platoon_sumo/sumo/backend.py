@@ -106,6 +106,7 @@ class SumoBackend:
         self._lane_lengths: dict[str, float] = {}
         self._type_sizes: dict[str, float] = {}
         self._largest_m = 0.0
+        self._in_network = 0
 
     def start(self) -> None:
         try:
@@ -137,7 +138,9 @@ class SumoBackend:
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
         veh, sizes = libsumo.vehicle, self._type_sizes
-        for vid in libsumo.simulation.getDepartedIDList():
+        departed = libsumo.simulation.getDepartedIDList()
+        self._in_network += len(departed) - libsumo.simulation.getArrivedNumber()
+        for vid in departed:
             type_id = veh.getTypeID(vid)
             if type_id not in sizes:
                 vt = libsumo.vehicletype
@@ -213,7 +216,9 @@ class SumoBackend:
         return grid.near(points, radius_m)
 
     def vehicle_count(self) -> int:
-        return int(libsumo.vehicle.getIDCount())
+        """Vehicles in the network: departed minus arrived, counted at each step (SUMO's
+        own count lists every vehicle, a cost that grows with the network)."""
+        return self._in_network
 
     def largest_vehicle_m(self) -> float:
         """Largest length + width [m] of the vehicle types that have entered the network
@@ -379,9 +384,11 @@ class SumoBackend:
         or vaporised when SUMO can no longer place it."""
         reason = libsumo.constants.REMOVE_ARRIVED if arrived else libsumo.constants.REMOVE_VAPORIZED
         try:
+            on_road = bool(libsumo.vehicle.getRoadID(vehicle_id))
             libsumo.vehicle.remove(vehicle_id, reason)
         except libsumo.TraCIException as exc:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
+        self._in_network -= on_road  # SUMO does not count our removals as arrivals
         self._geometry.pop(vehicle_id, None)
 
     def route_contexts(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import libsumo
 import pandas as pd
 import pytest
 
@@ -15,15 +16,20 @@ from tests.helpers import REPO, URBAN_GRID_NET
 
 
 class TrafficAroundEgo:
-    """Counts the SUMO vehicles in the network while the platoon vehicle drives."""
+    """Counts the SUMO vehicles in the network while the platoon vehicle drives, and
+    checks the loop's running count against SUMO's own list every step."""
 
     def __init__(self) -> None:
         self.max_sumo_vehicles_while_active = 0
+        self.count_mismatches: list[tuple[float, int, int]] = []
 
     def on_start(self, run: RunContext) -> None:
         pass
 
     def on_step(self, record: StepRecord) -> None:
+        listed = libsumo.vehicle.getIDCount()
+        if record.sumo_vehicles != listed:
+            self.count_mismatches.append((record.time_s, record.sumo_vehicles, listed))
         if record.vehicles:
             sumo_vehicles = record.sumo_vehicles - len(record.vehicles)
             self.max_sumo_vehicles_while_active = max(
@@ -65,6 +71,7 @@ def test_car_crosses_signalised_junctions_safely_among_traffic(urban_run):
     assert summary["teleports"] == 0
     assert summary["red_light_violations"] == 0
     assert counter.max_sumo_vehicles_while_active >= 100
+    assert counter.count_mismatches == []
     assert len(signalised_junctions_crossed(traj["lane_id"])) >= 3
 
 

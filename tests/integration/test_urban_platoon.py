@@ -30,6 +30,7 @@ def test_platoon_of_five_crosses_signals_and_turns_safely(platoon_run):
     assert summary["red_light_violations"] == 0
     assert summary["teleports"] == 0
     assert counter.max_sumo_vehicles_while_active >= 100
+    assert counter.count_mismatches == []  # also after the platoon's arrivals
     for vid, rows in traj.groupby("vehicle_id"):
         assert len(signalised_junctions_crossed(rows["lane_id"])) >= 3, vid
         # two right turns: the heading changes by about 90 degrees twice
