@@ -8,7 +8,7 @@ import numpy as np
 from platoon_sumo.actuation import ActuationBatch
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.fleet import Member
+from platoon_sumo.loop.fleet import ACCEL, SPEED, YAW, Member, X, Y
 from platoon_sumo.supervisor import SUMO_SAFETY
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
 
@@ -27,31 +27,28 @@ def _yaw_rate(m: Member, dt_s: float) -> float:
 
 class Actuate:
     def __call__(self, ctx: StepContext) -> None:
-        for group in ctx.fleet.by_platoon().values():
+        fleet, dt_s = ctx.fleet, ctx.dt_s
+        for group in fleet.by_platoon().values():
             platoon, actuator = group[0].platoon, group[0].actuator
-            state = KinematicState.of(
-                [m.x_m for m in group], [m.y_m for m in group],
-                [m.yaw_rad for m in group], [m.speed_mps for m in group],
-            )  # fmt: skip
+            rows = fleet.rows(group)
+            kin = fleet.kin[rows]
             batch = ActuationBatch(
                 vehicle_ids=tuple(m.id for m in group),
-                state=state,
+                state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
                 speed_cmd_mps=np.array([m.executed.speed_mps for m in group]),
-                yaw_rate_cmd_radps=np.array([_yaw_rate(m, ctx.dt_s) for m in group]),
+                yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
                 limits=platoon.limits,
                 model=platoon.model(),
-                dt_s=ctx.dt_s,
+                dt_s=dt_s,
             )
             result = actuator.apply(batch, ctx.backend)
             if result.state is not None:
                 new = result.state
-                for k, m in enumerate(group):
-                    speed = float(new.speed_mps[k])
-                    m.accel_mps2 = (speed - m.speed_mps) / ctx.dt_s
-                    m.x_m, m.y_m = float(new.x_m[k]), float(new.y_m[k])
-                    m.yaw_rad, m.speed_mps = float(new.yaw_rad[k]), speed
+                fleet.kin[rows, ACCEL] = (new.speed_mps - kin[:, SPEED]) / dt_s
+                fleet.kin[rows, X], fleet.kin[rows, Y] = new.x_m, new.y_m
+                fleet.kin[rows, YAW], fleet.kin[rows, SPEED] = new.yaw_rad, new.speed_mps
             for m in group:  # off its route: out of the run, reported
                 reason = result.failed.get(m.id)
                 if reason is not None:
@@ -66,24 +63,25 @@ class ReadBack:
     and counted once per episode."""
 
     def __call__(self, ctx: StepContext) -> None:
-        world = ctx.world
-        for m in ctx.fleet:
-            i = world.index.get(m.id)
-            if not m.actuator.sumo_drives or i is None:
-                continue
-            speed = float(world.speed_mps[i])
-            previous = m.speed_mps
-            m.set_front_pose(
-                float(world.front_x_m[i]), float(world.front_y_m[i]), float(world.yaw_rad[i])
-            )
-            m.speed_mps = speed
-            m.accel_mps2 = (speed - previous) / ctx.dt_s
-            allowed = min(
-                m.executed.speed_mps, previous + m.platoon.limits.max_accel_mps2 * ctx.dt_s
-            )
-            capped = speed < allowed - SUMO_CAP_TOLERANCE_MPS
-            if capped and not m.sumo_capped:
+        world, fleet, dt_s = ctx.world, ctx.fleet, ctx.dt_s
+        index = world.index
+        group = [m for m in fleet if m.actuator.sumo_drives and m.id in index]
+        if not group:
+            return
+        at = np.fromiter((index[m.id] for m in group), dtype=np.int64, count=len(group))
+        rows = fleet.rows(group)
+        previous = fleet.kin[rows, SPEED]
+        speed = world.speed_mps[at]
+        fleet.set_front_poses(rows, world.front_x_m[at], world.front_y_m[at], world.yaw_rad[at])
+        fleet.kin[rows, SPEED] = speed
+        fleet.kin[rows, ACCEL] = (speed - previous) / dt_s
+        commanded = np.array([m.executed.speed_mps for m in group])
+        max_accel = np.array([m.platoon.limits.max_accel_mps2 for m in group])
+        allowed = np.minimum(commanded, previous + max_accel * dt_s)
+        capped = speed < allowed - SUMO_CAP_TOLERANCE_MPS
+        for m, is_capped in zip(group, capped.tolist(), strict=True):
+            if is_capped and not m.sumo_capped:
                 ctx.emit(EventKind.SUMO_SPEED_CAP, m)
-            m.sumo_capped = capped
-            if capped and not m.supervisor_state:
+            m.sumo_capped = is_capped
+            if is_capped and not m.supervisor_state:
                 m.supervisor_state = SUMO_SAFETY

@@ -1,15 +1,22 @@
-"""The platoon vehicles in the network: one `Member` per vehicle, owned by the loop.
+"""The platoon vehicles in the network, owned by the loop.
 
-Stages read and write members only through the step context; hooks never see them
-(they get frozen `VehicleRecord`s). `Fleet.remove` is the one way out of the run.
+Their kinematic state lives in one array (`Fleet.kin`, a row per vehicle, a column per
+quantity), so stages work on all vehicles at once (`Fleet.rows`, `Fleet.column`);
+`Member` holds what is per vehicle by nature (its plan, controller, actuator, route,
+messages) and reads and writes its row through properties. Stages read and write
+members only through the step context; hooks never see them (they get frozen
+`VehicleRecord`s). `Fleet.remove` is the one way out of the run.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from platoon_sumo.actuation import Actuator
 from platoon_sumo.control import Command, Controller
@@ -17,25 +24,49 @@ from platoon_sumo.path import RoutePath
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan
 from platoon_sumo.world import LaneChangeAhead, LinkAhead, SignalAhead, VehicleAhead
 
+#: The columns of `Fleet.kin`. Pose is the vehicle model's reference point (rear axle
+#: for cars, wheel axle for robots); `route_s_m` is the front bumper's progress along
+#: the route path and `lateral_offset_m` its offset from it (left +).
+KINEMATICS = (
+    "x_m", "y_m", "yaw_rad", "speed_mps", "accel_mps2", "route_s_m", "lateral_offset_m",
+    "front_offset_m",
+)  # fmt: skip
+X, Y, YAW, SPEED, ACCEL, ROUTE_S, LATERAL, FRONT_OFFSET = range(len(KINEMATICS))
 
-@dataclass
+
+class _Column:
+    """A member's value in one column of its fleet's state array."""
+
+    def __init__(self, column: int) -> None:
+        self.column = column
+
+    def __get__(self, member: Member, owner: type | None = None) -> float:
+        return float(member.fleet.kin[member.row, self.column])
+
+    def __set__(self, member: Member, value: float) -> None:
+        member.fleet.kin[member.row, self.column] = value
+
+
+@dataclass(eq=False)
 class Member:
-    """One platoon vehicle while it is in the network (pose of the model's reference
-    point: rear axle for cars, wheel axle for robots)."""
+    """One platoon vehicle while it is in the network; its kinematic state is its row
+    of `fleet.kin` (see `KINEMATICS`)."""
 
     plan: MemberPlan
     platoon: PlatoonPlan
     controller: Controller
     actuator: Actuator
     path: RoutePath
-    x_m: float
-    y_m: float
-    yaw_rad: float
-    speed_mps: float = 0.0
-    accel_mps2: float = 0.0
-    route_s_m: float = 0.0
-    """Front bumper's progress along the route path."""
-    lateral_offset_m: float = 0.0
+    fleet: Fleet = field(repr=False)
+    row: int
+    x_m = _Column(X)
+    y_m = _Column(Y)
+    yaw_rad = _Column(YAW)
+    speed_mps = _Column(SPEED)
+    accel_mps2 = _Column(ACCEL)
+    route_s_m = _Column(ROUTE_S)
+    lateral_offset_m = _Column(LATERAL)
+    front_offset_m = _Column(FRONT_OFFSET)
     command: Command = field(default_factory=lambda: Command(0.0))
     """What the controller asked for this step."""
     executed: Command = field(default_factory=lambda: Command(0.0))
@@ -67,10 +98,6 @@ class Member:
     def index(self) -> int:
         return self.plan.index
 
-    @property
-    def front_offset_m(self) -> float:
-        return self.platoon.config.vehicle.front_offset_m
-
     def front_bumper(self) -> tuple[float, float]:
         off = self.front_offset_m
         return self.x_m + off * math.cos(self.yaw_rad), self.y_m + off * math.sin(self.yaw_rad)
@@ -83,13 +110,31 @@ class Member:
 
 
 class Fleet:
-    """The members in the network, in insertion order (deterministic)."""
+    """The members in the network, in insertion order (deterministic), and their
+    kinematic state. Rows are never reused within a run, so a member's row is fixed."""
 
-    def __init__(self) -> None:
+    def __init__(self, capacity: int = 16) -> None:
+        self.kin: NDArray[np.float64] = np.zeros((max(capacity, 1), len(KINEMATICS)))
         self._members: dict[str, Member] = {}
+        self._next_row = 0
 
-    def add(self, member: Member) -> None:
+    def join(
+        self,
+        plan: MemberPlan,
+        platoon: PlatoonPlan,
+        controller: Controller,
+        actuator: Actuator,
+        path: RoutePath,
+    ) -> Member:
+        """A new member, at rest at the origin until its pose is set."""
+        if self._next_row == len(self.kin):
+            self.kin = np.concatenate([self.kin, np.zeros_like(self.kin)])
+        self.kin[self._next_row] = 0.0
+        member = Member(plan, platoon, controller, actuator, path, self, self._next_row)
+        member.front_offset_m = platoon.config.vehicle.front_offset_m
+        self._next_row += 1
         self._members[member.id] = member
+        return member
 
     def remove(self, vehicle_id: str) -> Member | None:
         return self._members.pop(vehicle_id, None)
@@ -114,3 +159,26 @@ class Fleet:
         for m in self._members.values():
             groups.setdefault(m.platoon_id, []).append(m)
         return groups
+
+    @staticmethod
+    def rows(members: Sequence[Member]) -> NDArray[np.int64]:
+        return np.fromiter((m.row for m in members), dtype=np.int64, count=len(members))
+
+    def front_bumpers(self, rows: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
+        """Front bumper (x, y) of the members in `rows`."""
+        k = self.kin[rows]
+        off = k[:, FRONT_OFFSET]
+        return k[:, X] + off * np.cos(k[:, YAW]), k[:, Y] + off * np.sin(k[:, YAW])
+
+    def set_front_poses(
+        self,
+        rows: NDArray[np.int64],
+        front_x_m: NDArray[np.float64],
+        front_y_m: NDArray[np.float64],
+        yaw_rad: NDArray[np.float64],
+    ) -> None:
+        """Place the members in `rows` by their front bumpers."""
+        off = self.kin[rows, FRONT_OFFSET]
+        self.kin[rows, X] = front_x_m - off * np.cos(yaw_rad)
+        self.kin[rows, Y] = front_y_m - off * np.sin(yaw_rad)
+        self.kin[rows, YAW] = yaw_rad

@@ -73,9 +73,9 @@ class Departures:
             controller = plan.controller_cls(plan.controller_params)
             controller.reset()
             i = world.index[vid]
-            member = Member(
+            member = ctx.fleet.join(
                 plan, platoon, controller, ACTUATORS.get(platoon.config.actuation)(),
-                self._path_for(ctx, platoon), 0.0, 0.0, 0.0,
+                self._path_for(ctx, platoon),
             )  # fmt: skip
             member.set_front_pose(
                 float(world.front_x_m[i]), float(world.front_y_m[i]), float(world.yaw_rad[i])
@@ -83,7 +83,6 @@ class Departures:
             fx, fy = member.front_bumper()
             point = member.path.project(fx, fy)
             member.route_s_m, member.lateral_offset_m = point.s_m, point.lateral_offset_m
-            ctx.fleet.add(member)
             ctx.emit(EventKind.DEPARTED, member)
             new.append(member)
         if new:  # the light ahead at departure: the red-light check compares with it

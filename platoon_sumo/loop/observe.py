@@ -3,10 +3,13 @@ around the platoons, read once, in batch."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from platoon_sumo.actuation import ACTUATORS
 from platoon_sumo.events import EventKind, Onset
 from platoon_sumo.geometry import footprints_from_front_bumper
 from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.fleet import YAW
 from platoon_sumo.scenario import RunPlan
 
 #: Planar lane changes look this far along the target lanes for gaps [m].
@@ -69,13 +72,14 @@ class Footprints:
     """Rectangles of the world's vehicles; ours from our exact state."""
 
     def __call__(self, ctx: StepContext) -> None:
-        world = ctx.world
+        world, fleet = ctx.world, ctx.fleet
         x, y, yaw = world.front_x_m.copy(), world.front_y_m.copy(), world.yaw_rad.copy()
-        for m in ctx.fleet:
-            i = world.index.get(m.id)
-            if i is not None:
-                x[i], y[i] = m.front_bumper()
-                yaw[i] = m.yaw_rad
+        ours = [m for m in fleet if m.id in world.index]
+        if ours:
+            at = np.fromiter((world.index[m.id] for m in ours), dtype=np.int64, count=len(ours))
+            rows = fleet.rows(ours)
+            x[at], y[at] = fleet.front_bumpers(rows)
+            yaw[at] = fleet.kin[rows, YAW]
         ctx.footprints = footprints_from_front_bumper(
             x, y, yaw, world.length_m, world.width_m
         ).reshape(-1, 5)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.fleet import Member
+from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, Member
 from platoon_sumo.world import SignalAhead
 
 #: A member whose front bumper is this close to its path's end has arrived [m].
@@ -41,13 +41,19 @@ class RouteProgress:
         members = list(ctx.fleet)
         if not members:
             return
+        fleet = ctx.fleet
+        rows = fleet.rows(members)
+        front_x_m, front_y_m = fleet.front_bumpers(rows)
+        previous_s_m = fleet.kin[rows, ROUTE_S]
         travelled: list[float] = []
-        for m in members:
-            fx, fy = m.front_bumper()
+        for k, (m, fx, fy, s_m) in enumerate(
+            zip(members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), strict=True)
+        ):
             window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
-            point = m.path.project(fx, fy, s_hint_m=m.route_s_m, window_m=window)
-            travelled.append(max(point.s_m - m.route_s_m, 0.0))
-            m.route_s_m, m.lateral_offset_m = point.s_m, point.lateral_offset_m
+            point = m.path.project(fx, fy, s_hint_m=s_m, window_m=window)
+            travelled.append(max(point.s_m - s_m, 0.0))
+            fleet.kin[rows[k], ROUTE_S] = point.s_m
+            fleet.kin[rows[k], LATERAL] = point.lateral_offset_m
         contexts = ctx.backend.route_contexts(
             [m.id for m in members], [ahead_horizon_m(m, ctx.dt_s) for m in members]
         )

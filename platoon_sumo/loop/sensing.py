@@ -12,7 +12,7 @@ import numpy as np
 
 from platoon_sumo.errors import PluginError
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.fleet import Member
+from platoon_sumo.loop.fleet import SPEED, YAW, Member
 from platoon_sumo.platoon import predecessor_ids
 from platoon_sumo.sensors.base import SensingBatch, SensorModel
 from platoon_sumo.sensors.laser import LaserScan
@@ -45,15 +45,16 @@ class Sense:
         for key, group in due.items():
             model = self._models[key]
             ids = tuple(m.id for m, _ in group)
-            bumpers = np.array([m.front_bumper() for m, _ in group])
+            rows = ctx.fleet.rows([m for m, _ in group])
+            front_x_m, front_y_m = ctx.fleet.front_bumpers(rows)
             pred = [predecessors.get(m.id) for m, _ in group]
             batch = SensingBatch(
                 time_s=time_s,
                 vehicle_ids=ids,
-                front_x_m=bumpers[:, 0],
-                front_y_m=bumpers[:, 1],
-                yaw_rad=np.array([m.yaw_rad for m, _ in group]),
-                speed_mps=np.array([m.speed_mps for m, _ in group]),
+                front_x_m=front_x_m,
+                front_y_m=front_y_m,
+                yaw_rad=ctx.fleet.kin[rows, YAW],
+                speed_mps=ctx.fleet.kin[rows, SPEED],
                 own_index=np.array([index.get(vid, -1) for vid in ids], dtype=np.int64),
                 predecessor_index=np.array(
                     [index.get(p, -1) if p is not None else -1 for p in pred], dtype=np.int64
