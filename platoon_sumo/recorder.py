@@ -143,7 +143,9 @@ class TrajectoryRecorder(StepHook):
             self.stats.add_step(record.time_s, rows)
             self.stats.add_events(record.events)
         if self.writer is not None:
-            self._rows.extend(tuple(row[c] for c in TRAJECTORY_COLUMNS) for row in rows)
+            if rows and self.rows_written + len(self._rows) == 0:
+                assert tuple(rows[0]) == TRAJECTORY_COLUMNS, "row keys out of column order"
+            self._rows.extend(tuple(row.values()) for row in rows)
             if len(self._rows) >= self.chunk_rows:
                 self.flush()
 
