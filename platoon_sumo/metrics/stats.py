@@ -27,6 +27,8 @@ Row = Mapping[str, Any]
 def _num(row: Row, key: str) -> float | None:
     """A numeric cell, None when missing, empty or NaN."""
     value = row.get(key)
+    if type(value) is float:  # the recorder's rows: no conversion needed
+        return None if value != value else value
     if value is None or value == "":
         return None
     value = float(value)
@@ -54,8 +56,11 @@ class Running:
             return
         self.n += 1
         self.sum_sq += x * x
-        self.max_abs = max(self.max_abs, abs(x))
-        self.min = min(self.min, x)
+        magnitude = -x if x < 0.0 else x
+        if magnitude > self.max_abs:
+            self.max_abs = magnitude
+        if x < self.min:
+            self.min = x
 
     def rms(self) -> float | None:
         return math.sqrt(self.sum_sq / self.n) if self.n else None
