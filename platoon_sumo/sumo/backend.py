@@ -216,8 +216,9 @@ class SumoBackend:
         return grid.near(points, radius_m)
 
     def vehicle_count(self) -> int:
-        """Vehicles in the network: departed minus arrived, counted at each step (SUMO's
-        own count lists every vehicle, a cost that grows with the network)."""
+        """Vehicles in the network: departed minus arrived and removed, counted at each
+        step (SUMO's own count lists every vehicle, a cost that grows with the network).
+        A vehicle being teleported counts; SUMO's list leaves it out."""
         return self._in_network
 
     def largest_vehicle_m(self) -> float:
