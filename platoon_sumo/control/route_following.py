@@ -17,6 +17,7 @@ import numpy as np
 from platoon_sumo.config_loader import require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
+from platoon_sumo.kernels.path import profile_speed_kernel
 from platoon_sumo.path import RoutePath
 
 
@@ -98,12 +99,9 @@ class RouteFollowing:
         speed = min(self._profile_speed(obs), self._signal_speed(obs), self._following_speed(obs))
         # Predict the speed the vehicle model will reach, so the arc has the right curvature.
         limits = obs.limits
-        next_speed = float(
-            np.clip(
-                speed,
-                obs.speed_mps - limits.max_decel_mps2 * obs.dt_s,
-                obs.speed_mps + limits.max_accel_mps2 * obs.dt_s,
-            )
+        next_speed = min(
+            max(speed, obs.speed_mps - limits.max_decel_mps2 * obs.dt_s),
+            obs.speed_mps + limits.max_accel_mps2 * obs.dt_s,
         )
         tx, ty = path.point_at(self._s_m + lookahead)
         if obs.lane_offset_m:  # aim along the lane SUMO drives in, beside the path's own
@@ -136,10 +134,11 @@ class RouteFollowing:
         preview_m = v_max**2 / (2 * b) + 2 * obs.length_m
         i0 = int(self._s_m // path.spacing_m)
         i1 = min(len(path.xy_m), i0 + int(preview_m / path.spacing_m) + 2)
-        ahead = self._curve_speed_mps[i0:i1]
-        dist = np.maximum(np.arange(len(ahead)) * path.spacing_m - obs.front_offset_m, 0.0)
-        allowed = np.sqrt(ahead**2 + 2 * b * dist)
-        return float(min(allowed.min(initial=v_max), obs.limits.max_speed_mps))
+        i0 = min(max(i0, 0), i1)
+        reachable = profile_speed_kernel(
+            self._curve_speed_mps, i0, i1, path.spacing_m, obs.front_offset_m, b, v_max
+        )
+        return float(min(reachable, obs.limits.max_speed_mps))
 
     def _following_speed(self, obs: Observation) -> float:
         """Keep a safe distance to the vehicle ahead (braking at comfort decel suffices)."""

@@ -61,3 +61,29 @@ def project_kernel(
     s = min(best_k * spacing + best_t * math.sqrt(best_len2), length)
     width = widths[min(int(s // spacing), widths.size - 1)]
     return s, math.copysign(math.sqrt(best), cross), width
+
+
+@njit(cache=True)
+def profile_speed_kernel(
+    curve_speed: np.ndarray,
+    i0: int,
+    i1: int,
+    spacing: float,
+    front_offset: float,
+    decel: float,
+    v_max: float,
+) -> float:
+    """Highest speed from which every speed limit ``curve_speed[i0:i1]`` (one per path
+    vertex, ``spacing`` apart, the first at the reference point, ``front_offset`` behind
+    the front bumper) is reachable braking at ``decel``, and at most ``v_max``."""
+    best = v_max
+    two_b = 2 * decel
+    for k in range(i1 - i0):
+        limit = curve_speed[i0 + k]
+        dist = max(k * spacing - front_offset, 0.0)
+        allowed = math.sqrt(limit * limit + two_b * dist)
+        if allowed < best or allowed != allowed:
+            best = allowed
+            if allowed != allowed:
+                break
+    return best

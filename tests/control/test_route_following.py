@@ -6,9 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from platoon_sumo.control.base import Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.kernels.path import profile_speed_kernel
 from platoon_sumo.path import RoutePath
 from platoon_sumo.vehicles import Bicycle, KinematicState, MotionLimits
 from platoon_sumo.world import SignalAhead, VehicleAhead
@@ -153,3 +156,23 @@ def test_lane_actuated_car_asks_for_the_lane_its_route_plans(lane_offset_m, expe
         width_m=1.8, limits=LIMITS, path=path, lane_offset_m=lane_offset_m,
     )  # fmt: skip
     assert RouteFollowing().step(obs).lane_change == expected
+
+
+@given(
+    curve=st.lists(st.floats(0.0, 40.0), min_size=1, max_size=300),
+    i0=st.integers(0, 320),
+    span=st.integers(0, 320),
+    spacing=st.floats(0.02, 2.0),
+    front_offset=st.floats(0.0, 5.0),
+    decel=st.floats(0.1, 9.0),
+    v_max=st.floats(0.0, 60.0),
+)
+def test_profile_speed_kernel_matches_numpy(curve, i0, span, spacing, front_offset, decel, v_max):
+    """The compiled speed-profile look-ahead equals the numpy formula bit for bit."""
+    speeds = np.asarray(curve, dtype=np.float64)
+    i1 = min(len(speeds), i0 + span)
+    ahead = speeds[i0:i1]
+    dist = np.maximum(np.arange(len(ahead)) * spacing - front_offset, 0.0)
+    want = float(np.sqrt(ahead**2 + 2 * decel * dist).min(initial=v_max))
+    got = profile_speed_kernel(speeds, min(i0, i1), i1, spacing, front_offset, decel, v_max)
+    assert got == want
