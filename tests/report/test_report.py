@@ -71,7 +71,6 @@ def test_report_of_an_unfinished_folder_is_one_error_line(tmp_path, capsys):
 
 
 def test_parquet_trajectories_match_csv(tmp_path, write_scenario):
-    pytest.importorskip("pyarrow")
     base = {
         "network": {"net_file": str(REPO / "networks" / "urban_grid" / "urban_grid.net.xml")},
         "simulation": {"end_s": 4},
