@@ -30,7 +30,9 @@ from platoon_sumo.loop.context import StepHook
 from platoon_sumo.metrics import RunStats
 from platoon_sumo.metrics.sumo_outputs import (
     EDGEDATA_FILE,
+    PERSONINFO_FILE,
     SUMO_SUMMARY_FILE,
+    person_summary,
     read_run_outputs,
     sumo_output_args,
     traffic_effect,
@@ -47,7 +49,7 @@ from platoon_sumo.traffic import write_traffic_inputs
 OUTPUT_FILES = (
     "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
     "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
-    EDGEDATA_FILE, "scan_snapshot.npz", "events.csv",
+    EDGEDATA_FILE, PERSONINFO_FILE, "scan_snapshot.npz", "events.csv",
 )  # fmt: skip
 
 
@@ -172,7 +174,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     wall_s = time.perf_counter() - wall_start
     summary = _summary(plan, sim, end_time, wall_s)
     summary["followers"] = stats.followers()
-    trips, sumo_summary, edgedata = read_run_outputs(directory)
+    trips, sumo_summary, edgedata, persons = read_run_outputs(directory)
     vehicles, platoons = summary_tables(stats, trips)
     write_table(directory / "vehicles.csv", vehicles)
     write_table(directory / "platoons.csv", platoons)
@@ -180,7 +182,10 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     summary["overall"] = overall(platoons)
     platoon_ids = [m.vehicle_id for p in plan.platoons for m in p.members]
     route_edges = sorted({e for p in plan.platoons for e in p.edges})
-    summary["traffic"] = traffic_effect(trips, platoon_ids, sumo_summary, edgedata, route_edges)
+    summary["traffic"] = {
+        **traffic_effect(trips, platoon_ids, sumo_summary, edgedata, route_edges),
+        **person_summary(persons),
+    }
     if snapshot is not None:
         snapshot.save(directory / "scan_snapshot.npz")
     with (directory / "summary.json").open("w") as f:

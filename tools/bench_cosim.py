@@ -38,6 +38,7 @@ for a scenario with `lateral_resolution_m: null`, no demand scale and default ou
     --tripinfo-output tripinfo.csv --tripinfo-output.write-unfinished true
     --statistic-output sumo_statistics.xml
     --device.emissions.probability 1 --summary-output sumo_summary.csv
+    --personinfo-output personinfo.csv
     --end END
 
 (the co-simulation stops at END by its own loop instead of `--end`).
@@ -291,6 +292,7 @@ def sumo_alone_command(net: Path, routes: Path, out: Path, seed: int, end_s: flo
         "--statistic-output", str(out / "sumo_statistics.xml"),
         "--device.emissions.probability", "1",
         "--summary-output", str(out / "sumo_summary.csv"),
+        "--personinfo-output", str(out / "personinfo.csv"),
         "--end", repr(end_s),
     ]  # fmt: skip
 

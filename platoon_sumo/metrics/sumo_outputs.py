@@ -6,6 +6,8 @@ additional file for `edgeData`), then reads and aggregates them:
 - tripinfo (`--tripinfo-output`, with the emissions device `--device.emissions.probability
   1` so every trip carries `emissions_*_abs`): travel time, time loss, waiting time,
   fuel, CO2 of every vehicle, ours and human-driven;
+- personinfo (`--personinfo-output`): the persons' (and containers') trips, in their
+  own file, so they never count as vehicle trips;
 - summary (`--summary-output`): network-wide running/halting vehicles, mean speed, mean
   waiting and travel time per step;
 - edgeData (an `<edgeData>` in an additional file): per-edge traffic measures per
@@ -25,6 +27,7 @@ from typing import Any
 import pandas as pd
 
 SUMO_SUMMARY_FILE = "sumo_summary.csv"
+PERSONINFO_FILE = "personinfo.csv"
 EDGEDATA_FILE = "edgedata.csv"
 EDGEDATA_ADDITIONAL = "edgedata.add.xml"
 #: SUMO reports emissions in mg (fuel and gases) and Wh (electricity).
@@ -32,10 +35,12 @@ MG_PER_KG = 1e6
 
 
 def sumo_output_args(directory: Path) -> tuple[str, ...]:
-    """Extra SUMO options: emissions device and the network summary output."""
+    """Extra SUMO options: emissions device, the network summary and the persons' trips
+    (which SUMO would otherwise write into tripinfo, as rows of other columns)."""
     return (
         "--device.emissions.probability", "1",
         "--summary-output", str(directory / SUMO_SUMMARY_FILE),
+        "--personinfo-output", str(directory / PERSONINFO_FILE),
     )  # fmt: skip
 
 
@@ -148,6 +153,22 @@ def traffic_effect(
     return result
 
 
+def person_summary(persons: pd.DataFrame) -> dict[str, Any]:
+    """Persons (and containers) SUMO moved: how many, how many finished (a duration
+    >= 0), their mean travel time and time loss."""
+    if persons.empty or "id" not in persons:
+        return {"persons": 0, "persons_finished": 0, "person_mean_travel_time_s": None,
+                "person_mean_time_loss_s": None}  # fmt: skip
+    duration = pd.to_numeric(persons["duration"], errors="coerce")
+    done = persons[duration >= 0]
+    return {
+        "persons": len(persons),
+        "persons_finished": len(done),
+        "person_mean_travel_time_s": _mean(done["duration"]) if len(done) else None,
+        "person_mean_time_loss_s": _mean(done["timeLoss"]) if len(done) else None,
+    }
+
+
 def network_summary(summary: pd.DataFrame) -> dict[str, Any]:
     """From SUMO's summary output: means over the run's steps, and the last step."""
     if summary.empty:
@@ -184,12 +205,16 @@ def edge_summary(edgedata: pd.DataFrame, route_edges: Collection[str]) -> dict[s
     }
 
 
-def read_run_outputs(directory: Path) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
-    """tripinfo, summary and edgeData tables of a results folder (empty if absent)."""
+def read_run_outputs(
+    directory: Path,
+) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """tripinfo, summary, edgeData and personinfo tables of a results folder (empty if
+    absent)."""
     return (
         read_tripinfo(directory / "tripinfo.csv"),
         read_sumo_csv(directory / SUMO_SUMMARY_FILE, "step_"),
         read_sumo_csv(directory / EDGEDATA_FILE, ""),
+        read_sumo_csv(directory / PERSONINFO_FILE, "personinfo_"),
     )
 
 
