@@ -107,6 +107,7 @@ class SumoBackend:
         self._type_sizes: dict[str, float] = {}
         self._largest_m = 0.0
         self._in_network = 0
+        self._departed: tuple[str, ...] = ()
 
     def start(self) -> None:
         try:
@@ -138,7 +139,7 @@ class SumoBackend:
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
         veh, sizes = libsumo.vehicle, self._type_sizes
-        departed = libsumo.simulation.getDepartedIDList()
+        departed = self._departed = tuple(libsumo.simulation.getDepartedIDList())
         self._in_network += len(departed) - libsumo.simulation.getArrivedNumber()
         for vid in departed:
             type_id = veh.getTypeID(vid)
@@ -319,7 +320,8 @@ class SumoBackend:
         return float(libsumo.lane.getWidth(lane_id))
 
     def departed_ids(self) -> tuple[str, ...]:
-        return tuple(libsumo.simulation.getDepartedIDList())
+        """Vehicles SUMO inserted in the last step (read once, in `step`)."""
+        return self._departed
 
     def arrived_ids(self) -> tuple[str, ...]:
         arrived = tuple(libsumo.simulation.getArrivedIDList())
