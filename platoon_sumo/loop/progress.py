@@ -3,6 +3,8 @@ light, leader, link), red-light violations, and removal at the route's end."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, Member
@@ -45,15 +47,18 @@ class RouteProgress:
         rows = fleet.rows(members)
         front_x_m, front_y_m = fleet.front_bumpers(rows)
         previous_s_m = fleet.kin[rows, ROUTE_S]
-        travelled: list[float] = []
-        for k, (m, fx, fy, s_m) in enumerate(
-            zip(members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), strict=True)
+        route_s_m: list[float] = []
+        lateral_m: list[float] = []
+        for m, fx, fy, s_m in zip(
+            members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), strict=True
         ):
             window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
             point = m.path.project(fx, fy, s_hint_m=s_m, window_m=window)
-            travelled.append(max(point.s_m - s_m, 0.0))
-            fleet.kin[rows[k], ROUTE_S] = point.s_m
-            fleet.kin[rows[k], LATERAL] = point.lateral_offset_m
+            route_s_m.append(point.s_m)
+            lateral_m.append(point.lateral_offset_m)
+        fleet.kin[rows, ROUTE_S] = route_s_m
+        fleet.kin[rows, LATERAL] = lateral_m
+        travelled = np.maximum(fleet.kin[rows, ROUTE_S] - previous_s_m, 0.0).tolist()
         contexts = ctx.backend.route_contexts(
             [m.id for m in members], [ahead_horizon_m(m, ctx.dt_s) for m in members]
         )
