@@ -131,6 +131,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         route_files=tuple(str(p) for p in (*plan.route_files, *generated)),
         additional_files=(*(str(p) for p in plan.additional_files), *extra_additional),
         lateral_resolution_m=sc.simulation.lateral_resolution_m,
+        time_to_teleport_s=sc.simulation.time_to_teleport_s,
         demand_scale=sc.traffic.scale,
         tripinfo_file=str(directory / "tripinfo.csv") if sc.outputs.tripinfo else None,
         statistics_file=str(directory / "sumo_statistics.xml"),

@@ -61,6 +61,10 @@ class SimulationConfig:
     """SUMO sublane resolution [m]: planar platoons need it (without it their poses snap
     to lane centres and SUMO drivers miss a car between lanes). null: no sublane model,
     SUMO's lane changes take one step (enough when every platoon uses `actuation: lane`)."""
+    time_to_teleport_s: float | None = None
+    """SUMO's jam teleport: a vehicle stuck this long [s] is moved ahead along its route
+    (`--time-to-teleport`); each teleport is a `teleport` event. null (default): off,
+    vehicles wait (a gridlock stays one)."""
 
     def __post_init__(self) -> None:
         require(math.isfinite(self.step_s), "step_s", "must be a finite number")
@@ -73,6 +77,12 @@ class SimulationConfig:
             self.lateral_resolution_m is None or self.lateral_resolution_m > 0,
             "lateral_resolution_m",
             "must be > 0 (or null: no sublane model)",
+        )
+        require(
+            self.time_to_teleport_s is None
+            or (math.isfinite(self.time_to_teleport_s) and self.time_to_teleport_s > 0),
+            "time_to_teleport_s",
+            "must be a finite number > 0 s (or null: no teleports)",
         )
 
 

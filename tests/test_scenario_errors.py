@@ -122,6 +122,12 @@ CASES = [
         put("simulation.seed", True),
     ),
     Case(
+        "teleport_time_not_positive",
+        "simulation.time_to_teleport_s",
+        ("must be a finite number > 0 s",),
+        put("simulation.time_to_teleport_s", -1),
+    ),
+    Case(
         "negative_step",
         "simulation.step_s",
         ("must be > 0",),

@@ -57,6 +57,7 @@ class SumoOptions:
     route_files: tuple[str, ...] = ()
     additional_files: tuple[str, ...] = ()
     lateral_resolution_m: float | None = 0.8
+    time_to_teleport_s: float | None = None
     demand_scale: float = 1.0
     tripinfo_file: str | None = None
     statistics_file: str | None = None
@@ -69,7 +70,8 @@ class SumoOptions:
             "--step-length", repr(self.step_s),
             "--begin", repr(self.begin_s),
             "--seed", str(self.seed),
-            "--time-to-teleport", "-1",
+            "--time-to-teleport",
+            "-1" if self.time_to_teleport_s is None else repr(self.time_to_teleport_s),
             "--collision.action", "warn",
             "--collision.check-junctions", "true",
             "--no-step-log", "true",
