@@ -99,12 +99,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"warning: platoon '{pid}' was never inserted: {why}", file=sys.stderr)
     for removed in s.get("removed_off_route", []):
         print(f"warning: taken out of the run: {removed['reason']}", file=sys.stderr)
+    for jam in s.get("gridlock_events", [])[:3]:
+        print(
+            f"warning: gridlock: '{jam['vehicle_id']}' at t={jam['time_s']:.0f} s, "
+            f"{jam['where']} (summary.json: gridlock_events)",
+            file=sys.stderr,
+        )
     pv = s["platoon_vehicles"]
     print(
         f"{s['scenario']}: {s['simulated_s']:.0f} s simulated in {s['wall_clock_s']:.1f} s "
         f"({s['real_time_factor']}x real time); platoon vehicles {pv['arrived']}/{pv['planned']} "
         f"arrived, {s['collisions']} collisions, {s['teleports']} teleports, "
-        f"{s['red_light_violations']} red-light violations\nresults: {result.directory}"
+        f"{s['red_light_violations']} red-light violations, {s['gridlocks']} gridlocked "
+        f"vehicles\nresults: {result.directory}"
     )
     return 0
 

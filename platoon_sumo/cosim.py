@@ -5,8 +5,9 @@ A step is a fixed sequence of stages (`platoon_sumo.loop`) sharing one `StepCont
   before SUMO's step (on the world read after the previous one):
     InsertDue -> Sense -> Decide -> Actuate
   SUMO's step, then (on the new world):
-    SumoReports -> Arrivals -> ObserveWorld -> Departures -> ReadBack -> RouteProgress
-    -> LaneChangeGaps -> Footprints -> Predecessors -> Cohesion -> SafetyCheck
+    SumoReports -> Gridlocks -> Arrivals -> ObserveWorld -> Departures -> ReadBack
+    -> RouteProgress -> LaneChangeGaps -> Footprints -> Predecessors -> Cohesion
+    -> SafetyCheck
   then every hook gets the step's immutable record.
 
 docs/design.md walks through each stage. Stages exchange data through the context only,
@@ -34,7 +35,7 @@ from platoon_sumo.loop.context import (
 from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Arrivals, Departures, InsertDue
 from platoon_sumo.loop.lane_change import LaneChangeGaps
-from platoon_sumo.loop.observe import Footprints, ObserveWorld, SumoReports
+from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
 from platoon_sumo.loop.ports import Backend
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
@@ -56,8 +57,9 @@ def before_sumo_stages() -> list[Stage]:
 
 def after_sumo_stages() -> list[Stage]:
     return [
-        SumoReports(), Arrivals(), ObserveWorld(), Departures(), ReadBack(), RouteProgress(),
-        LaneChangeGaps(), Footprints(), Predecessors(), Cohesion(), SafetyCheck(),
+        SumoReports(), Gridlocks(), Arrivals(), ObserveWorld(), Departures(), ReadBack(),
+        RouteProgress(), LaneChangeGaps(), Footprints(), Predecessors(), Cohesion(),
+        SafetyCheck(),
     ]  # fmt: skip
 
 

@@ -24,6 +24,9 @@ class EventKind(str, Enum):
     """SUMO reported a new collision (its lane-based check), any vehicles."""
     TELEPORT = "teleport"
     """SUMO started teleporting a vehicle (a jam it gave up on)."""
+    GRIDLOCK = "gridlock"
+    """A vehicle (any) has stood still for `outputs.gridlock_after_s`, not at a stop of
+    its schedule nor queued at a red light."""
     RED_LIGHT = "red_light"
     """A platoon vehicle crossed a stop line on red or red-yellow."""
     EMERGENCY_BRAKING = "emergency_braking"
@@ -51,11 +54,11 @@ WALL = "<wall>"
 @dataclass(frozen=True)
 class Event:
     """One event. `vehicle_id` is the platoon vehicle concerned (for SUMO collisions the
-    collider, for teleports the SUMO vehicle); `other_id` the other party (collision
+    collider, for teleports and gridlocks the SUMO vehicle); `other_id` the other party (collision
     partner or WALL, SUMO's victim, the predecessor of a split or re-formation, the
     vehicle that cut in, the traffic light of a red-light violation); `detail` a short
     text (link index and state of a light, SUMO's reason for a removal, a collision's
-    type)."""
+    type, where and how long a vehicle stood)."""
 
     time_s: float
     kind: EventKind

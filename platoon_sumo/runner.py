@@ -254,6 +254,11 @@ def event_summary(events: list[Event], platoon_vehicle_ids: set[str]) -> dict[st
             e.vehicle_id in platoon_vehicle_ids or e.other_id in platoon_vehicle_ids for e in sumo
         ),
         "teleports": count(events, EventKind.TELEPORT),
+        "gridlocks": count(events, EventKind.GRIDLOCK),
+        "gridlock_events": [
+            {"time_s": e.time_s, "vehicle_id": e.vehicle_id, "where": e.detail}
+            for e in of_kind(events, EventKind.GRIDLOCK)
+        ],
         "emergency_brakings": count(events, EventKind.EMERGENCY_BRAKING),
         "sumo_speed_caps": count(events, EventKind.SUMO_SPEED_CAP),
         "red_light_violations": len(red),

@@ -463,9 +463,19 @@ class OutputConfig:
     scan_snapshot_s: float | None = None
     """Keep the first follower's laser scan at this time for the report's scan figure;
     default: the scan halfway through its scans that saw its predecessor [s]."""
+    gridlock_after_s: float | None = 300.0
+    """A vehicle (any, SUMO's or ours) standing still this long, neither at a stop of its
+    schedule nor queued within 250 m of a red light, is reported as gridlocked (a
+    `gridlock` event; checked every 10 simulated seconds) [s]; null: no check."""
 
     def __post_init__(self) -> None:
         require(self.chunk_rows >= 1, "chunk_rows", "must be >= 1")
+        require(
+            self.gridlock_after_s is None
+            or (math.isfinite(self.gridlock_after_s) and self.gridlock_after_s > 0),
+            "gridlock_after_s",
+            "must be a finite number > 0 s (or null: no check)",
+        )
         require_choice(self.format, ("csv", "parquet"), "format")
         require(math.isfinite(self.metrics_start_s), "metrics_start_s", "must be finite")
         require(self.edgedata_period_s > 0, "edgedata_period_s", "must be > 0")

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from platoon_sumo.loop.ports import FloatArray, LaneOccupant, RouteContext
+from platoon_sumo.loop.ports import FloatArray, LaneOccupant, RouteContext, StandingVehicle
 from platoon_sumo.world import VehicleAhead, WorldSnapshot
 
 LANE = "WE_0"
@@ -42,6 +42,7 @@ class FakeBackend:
         self.lane_requests: dict[str, int] = {}
         self.collisions: list[tuple[str, str, str]] = []
         self.fail_moves_beyond_y_m = 10.0
+        self.standing: list[StandingVehicle] = []
 
     # --------------------------------------------------------------- test helpers
     def add_human(self, vid: str, x_m: float, speed_mps: float) -> None:
@@ -81,6 +82,9 @@ class FakeBackend:
 
     def vehicle_count(self) -> int:
         return len(self.vehicles)
+
+    def standing_vehicles(self, min_wait_s: float) -> list[StandingVehicle]:
+        return [v for v in self.standing if v[4] >= min_wait_s]
 
     def largest_vehicle_m(self) -> float:
         return max((v.length_m + v.width_m for v in self.vehicles.values()), default=0.0)

@@ -80,7 +80,8 @@ class StepContext:
             vid, pid = member.id, member.platoon_id
         else:
             vid, pid = member, ""
-        self.events.append(Event(self.world.time_s, kind, vid, other, pid, detail))
+        # the backend's clock: stages after SUMO's step emit before the new world is read
+        self.events.append(Event(self.backend.time_s, kind, vid, other, pid, detail))
 
     def remove(self, member: Member, arrived: bool, reason: str = "") -> None:
         """The one way a platoon vehicle leaves the run before SUMO lets it arrive."""

@@ -31,6 +31,32 @@ class SumoReports:
             ctx.emit(EventKind.SUMO_COLLISION, a, other=b, detail=pairs[(a, b)])
 
 
+class Gridlocks:
+    """Every `CHECK_EVERY_S` simulated seconds: vehicles (any) standing still for
+    `outputs.gridlock_after_s`, neither at a stop of their schedule nor queued at a red
+    light; each such vehicle is one `gridlock` event when it is first found so (again
+    after it has moved). Where: its lane and position, in the event's detail."""
+
+    CHECK_EVERY_S = 10.0
+
+    def __init__(self) -> None:
+        self._standing: Onset[str] = Onset()
+
+    def __call__(self, ctx: StepContext) -> None:
+        after_s = ctx.run.plan.scenario.outputs.gridlock_after_s
+        every = max(1, round(self.CHECK_EVERY_S / ctx.dt_s))
+        if after_s is None or ctx.steps % every:
+            return
+        standing = {vid: rest for vid, *rest in ctx.backend.standing_vehicles(after_s)}
+        for vid in self._standing.update(standing):
+            lane, x, y, waited = standing[vid]
+            member = ctx.fleet.get(vid)
+            ctx.emit(
+                EventKind.GRIDLOCK, member if member is not None else vid,
+                detail=f"lane {lane} at ({x:.1f}, {y:.1f}), still for {waited:.0f} s",
+            )  # fmt: skip
+
+
 class ObserveWorld:
     """The platoon vehicles and every vehicle that one of their sensors could see or
     whose footprint could touch one of them, after the step. Positions are front

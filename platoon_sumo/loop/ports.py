@@ -20,6 +20,8 @@ FloatArray = NDArray[np.float64]
 LaneOccupant = tuple[str, float, float, float]
 #: The route context of one vehicle: next light, SUMO's leader, the link ahead.
 RouteContext = tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]
+#: (vehicle id, lane id, front bumper x, y [m], seconds standing still)
+StandingVehicle = tuple[str, str, float, float, float]
 
 
 class Backend(Protocol):
@@ -34,6 +36,11 @@ class Backend(Protocol):
         ...
 
     def vehicle_count(self) -> int: ...
+
+    def standing_vehicles(self, min_wait_s: float) -> list[StandingVehicle]:
+        """Vehicles that have stood still for at least `min_wait_s`, neither at a stop of
+        their schedule nor within 250 m of a red light ahead: (id, lane, x, y, seconds)."""
+        ...
 
     def largest_vehicle_m(self) -> float:
         """Largest length + width [m] of any vehicle type in the simulation."""

@@ -28,6 +28,8 @@ from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapsh
 #: gaps (512) with sublane adjustments (1024); no cooperative, speed-gain or keep-right
 #: changes (SUMO's default is 1621).
 LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
+#: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
+RED_QUEUE_M = 250.0
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -223,6 +225,23 @@ class SumoBackend:
         step (SUMO's own count lists every vehicle, a cost that grows with the network).
         A vehicle being teleported counts; SUMO's list leaves it out."""
         return self._in_network
+
+    def standing_vehicles(self, min_wait_s: float) -> list[tuple[str, str, float, float, float]]:
+        """Vehicles standing still (SUMO's waiting time: below 0.1 m/s since) for at
+        least `min_wait_s`, neither stopped by their schedule (a stop, parking) nor
+        within `RED_QUEUE_M` of a red light ahead: (id, lane, x, y, seconds)."""
+        veh = libsumo.vehicle
+        found = []
+        for vid in veh.getIDList():
+            waited = veh.getWaitingTime(vid)
+            if waited < min_wait_s or veh.isStopped(vid):
+                continue
+            signals = veh.getNextTLS(vid)
+            if signals and signals[0][2] <= RED_QUEUE_M and signals[0][3] in ("r", "u"):
+                continue
+            x, y = veh.getPosition(vid)
+            found.append((vid, veh.getLaneID(vid), float(x), float(y), float(waited)))
+        return found
 
     def largest_vehicle_m(self) -> float:
         """Largest length + width [m] of the vehicle types that have entered the network

@@ -1,5 +1,6 @@
 """SUMO's jam teleport is a scenario option, off by default: with it, a car stuck
-behind stopped cars is teleported (and counted); without it, it waits."""
+behind stopped cars is teleported (and counted); without it, it waits, and the gridlock
+check reports it (not the cars stopped by their schedule)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ def scenario(demand: Path, teleport_s: float | None) -> dict:
                        "time_to_teleport_s": teleport_s},
         "network": {"net_file": str(REPO / "networks" / "straight" / "straight.net.xml")},
         "traffic": {"route_files": [str(demand)]},
+        "outputs": {"gridlock_after_s": 30.0},
         "platoons": [{
             "id": "p", "members": 1, "depart_s": 100.0, "route": {"edges": ["WE"]},
             "actuation": "lane", "leader": {"type": "route_following"},
@@ -49,6 +51,10 @@ def test_jam_teleports_only_when_the_scenario_asks(
     if teleport_s is None:
         assert summary["teleports"] == 0
         assert trips.loc["stuck", "tripinfo_arrival"] < 0  # still waiting at the end
+        assert summary["gridlocks"] == 1
+        (event,) = summary["gridlock_events"]
+        assert event["vehicle_id"] == "stuck" and event["where"].startswith("lane WE_")
+        assert 30.0 <= event["time_s"] <= 60.0  # stopped at ~15 s, found at a 10 s check
     else:
         assert summary["teleports"] >= 1
         events = (out / "events.csv").read_text()

@@ -18,7 +18,7 @@ from platoon_sumo.loop.actuate import Actuate, ReadBack
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepHook
 from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Departures, InsertDue
-from platoon_sumo.loop.observe import Footprints, ObserveWorld, SumoReports
+from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
@@ -317,3 +317,24 @@ def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
     assert hook.outcome is not None and hook.outcome.status == "failed"
     assert "late failure" in hook.outcome.error
     assert hook.steps == 3  # the failing step's record never reached the hooks
+
+
+def test_gridlocks_are_found_every_ten_seconds_once_per_episode(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    stage = Gridlocks()
+    backend.standing = [("h", "WE_0", 50.0, LANE_Y_M, 400.0), ("q", "WE_0", 40.0, LANE_Y_M, 90.0)]
+    for step in range(1, 301):  # 30 s: checks at 10, 20 and 30 s
+        backend.time, ctx.steps = step * 0.1, step
+        if step == 150:  # h moved, then stood again
+            backend.standing = []
+        if step == 250:
+            backend.standing = [("h", "WE_0", 60.0, LANE_Y_M, 305.0)]
+        stage(ctx)
+    found = ctx.events
+    assert [(e.kind, e.vehicle_id) for e in found] == [
+        (EventKind.GRIDLOCK, "h"),
+        (EventKind.GRIDLOCK, "h"),
+    ]  # q stood 90 s only (below the default 300 s); h twice: two episodes
+    assert [round(e.time_s, 6) for e in found] == [10.0, 30.0]
+    assert found[0].detail == "lane WE_0 at (50.0, -5.2), still for 400 s"
