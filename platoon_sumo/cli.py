@@ -20,6 +20,7 @@ from platoon_sumo.errors import PlatoonSumoError, ScenarioError
 
 if TYPE_CHECKING:
     from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
+    from platoon_sumo.scenario import RunPlan
     from platoon_sumo.sensors.laser import LaserScan
 
 DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
@@ -80,11 +81,30 @@ class Progress:
             self.stream.write("\n")
 
 
+#: Network warnings shown before "... and N more".
+SHOWN_WARNINGS = 5
+
+
+def _network_warnings(plan: RunPlan) -> None:
+    """What in the network may spoil a run without being an error (stderr)."""
+    from platoon_sumo.sumo.signals import long_signal_phases
+
+    try:
+        found = long_signal_phases([plan.net_file, *plan.additional_files])
+    except ValueError as exc:
+        raise ScenarioError(str(plan.source.path), "network", str(exc)) from None
+    for message in found[:SHOWN_WARNINGS]:
+        print(f"warning: {message}", file=sys.stderr)
+    if len(found) > SHOWN_WARNINGS:
+        print(f"warning: ... and {len(found) - SHOWN_WARNINGS} more long phases", file=sys.stderr)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from platoon_sumo.runner import load_plan, run
 
     path = Path(args.scenario) if args.scenario else default_scenario()
     plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
+    _network_warnings(plan)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
     result = run(plan, out_dir=args.out, hooks=hooks)
     s = result.summary
@@ -167,6 +187,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     from platoon_sumo.scenario import load_scenario, prepare
 
     plan = prepare(load_scenario(args.scenario))
+    _network_warnings(plan)
     members = sum(len(p.members) for p in plan.platoons)
     print(
         f"{args.scenario}: OK ({len(plan.platoons)} platoons, {members} vehicles, "
