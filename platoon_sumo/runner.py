@@ -170,6 +170,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         )
         sim.run()
         end_time = backend.time_s
+        vehicle_classes = backend.vehicle_classes()
     finally:
         backend.close()
     wall_s = time.perf_counter() - wall_start
@@ -184,7 +185,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     platoon_ids = [m.vehicle_id for p in plan.platoons for m in p.members]
     route_edges = sorted({e for p in plan.platoons for e in p.edges})
     summary["traffic"] = {
-        **traffic_effect(trips, platoon_ids, sumo_summary, edgedata, route_edges),
+        **traffic_effect(trips, platoon_ids, sumo_summary, edgedata, route_edges, vehicle_classes),
         **person_summary(persons),
     }
     if snapshot is not None:

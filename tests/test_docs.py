@@ -64,11 +64,17 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory):
 
 
 def _flat_keys(mapping: dict, prefix: str = "") -> list[str]:
-    """Dotted key paths of the summary's values; `versions`, `followers` and `platoons`
-    (keyed by package / vehicle / platoon ids) are documented as one key each."""
+    """Dotted key paths of the summary's values; `versions`, `followers`, `platoons` and
+    `other_trips` (keyed by package / vehicle / platoon ids / vehicle classes) are
+    documented as one key each."""
     keys = []
     for key, value in mapping.items():
-        if isinstance(value, dict) and key not in ("versions", "followers", "platoons"):
+        if isinstance(value, dict) and key not in (
+            "versions",
+            "followers",
+            "platoons",
+            "other_trips",
+        ):
             keys += _flat_keys(value, f"{prefix}{key}.")
         else:
             keys.append(prefix + key)

@@ -30,6 +30,13 @@ SUMO_SUMMARY_FILE = "sumo_summary.csv"
 PERSONINFO_FILE = "personinfo.csv"
 EDGEDATA_FILE = "edgedata.csv"
 EDGEDATA_ADDITIONAL = "edgedata.add.xml"
+#: SUMO vehicle classes that are not human-driven road vehicles: reported apart
+#: (`other_trips`), never in the human-traffic figures.
+OTHER_TRAFFIC_CLASSES = frozenset({
+    "pedestrian", "bicycle", "scooter", "wheelchair", "tram", "rail_urban", "rail",
+    "rail_electric", "rail_fast", "subway", "cable_car", "ship", "aircraft", "drone",
+    "container",
+})  # fmt: skip
 #: SUMO reports emissions in mg (fuel and gases) and Wh (electricity).
 MG_PER_KG = 1e6
 
@@ -133,10 +140,19 @@ def traffic_effect(
     summary: pd.DataFrame,
     edgedata: pd.DataFrame,
     route_edges: Collection[str],
+    vehicle_classes: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """The other traffic as SUMO measured it: human-driven trips, network summary, and
-    the edges the platoons drive on."""
+    the edges the platoons drive on. Trips of vehicle types whose class (from
+    `vehicle_classes`, type -> SUMO vClass) is in `OTHER_TRAFFIC_CLASSES` (bicycles,
+    trams, trains, ...) are counted apart, by class, in `other_trips`."""
     others = trips[~trips["id"].astype(str).isin(set(platoon_ids))] if not trips.empty else trips
+    other_trips: dict[str, int] = {}
+    if len(others) and vehicle_classes and "vType" in others:
+        vclass = others["vType"].astype(str).map(lambda t: vehicle_classes.get(t, ""))
+        non_car = vclass.isin(OTHER_TRAFFIC_CLASSES)
+        other_trips = {str(k): int(v) for k, v in sorted(vclass[non_car].value_counts().items())}
+        others = others[~non_car]
     done = others[pd.to_numeric(others["arrival"], errors="coerce") >= 0] if len(others) else others
     result: dict[str, Any] = {
         "human_trips": len(others),
@@ -148,6 +164,7 @@ def traffic_effect(
         **{f"human_{k}": v for k, v in emissions_totals(others, set(
             others["id"].astype(str)) if len(others) else set()).items()},
     }  # fmt: skip
+    result["other_trips"] = other_trips
     result.update(network_summary(summary))
     result.update(edge_summary(edgedata, route_edges))
     return result

@@ -109,6 +109,7 @@ class SumoBackend:
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
         self._type_sizes: dict[str, float] = {}
+        self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
         self._in_network = 0
         self._departed: tuple[str, ...] = ()
@@ -151,6 +152,7 @@ class SumoBackend:
                 vt = libsumo.vehicletype
                 sizes[type_id] = float(vt.getLength(type_id) + vt.getWidth(type_id))
                 self._largest_m = max(self._largest_m, sizes[type_id])
+                self._type_classes[type_id] = str(vt.getVehicleClass(type_id))
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
         """The given vehicles and every vehicle whose front bumper lies within `radius_m`
@@ -242,6 +244,10 @@ class SumoBackend:
             x, y = veh.getPosition(vid)
             found.append((vid, veh.getLaneID(vid), float(x), float(y), float(waited)))
         return found
+
+    def vehicle_classes(self) -> dict[str, str]:
+        """{vehicle type: its SUMO vClass} of every type that entered the network."""
+        return dict(self._type_classes)
 
     def largest_vehicle_m(self) -> float:
         """Largest length + width [m] of the vehicle types that have entered the network

@@ -1,5 +1,5 @@
-"""Persons in the demand are not vehicle trips: SUMO writes them to personinfo.csv and
-the summary counts them apart from the human-driven vehicles."""
+"""Persons and bicycles in the demand are not human-driven vehicle trips: SUMO writes
+persons to personinfo.csv, and the summary counts both apart from the cars."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pandas as pd
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
-CARS, PEDESTRIANS = 3, 4
+CARS, PEDESTRIANS, BIKES = 3, 4, 2
 
 
 def test_persons_are_reported_apart_from_human_vehicles(write_scenario, tmp_path: Path) -> None:
@@ -25,8 +25,16 @@ def test_persons_are_reported_apart_from_human_vehicles(write_scenario, tmp_path
          f'<walk edges="WE" arrivalPos="{120 + 10 * k}"/></person>')
         for k in range(PEDESTRIANS)
     ]  # fmt: skip
-    lines = [line for _, line in sorted(cars + walkers)]  # SUMO wants them by depart time
-    demand.write_text("<routes>\n" + "\n".join(lines) + "\n</routes>\n", encoding="utf-8")
+    bikes = [
+        (3.0 * k + 0.2, f'  <vehicle id="bike{k}" type="bike" depart="{3 * k + 0.2}">'
+         '<route edges="WE"/></vehicle>')
+        for k in range(BIKES)
+    ]  # fmt: skip
+    lines = [line for _, line in sorted(cars + walkers + bikes)]  # by depart time for SUMO
+    demand.write_text(
+        '<routes>\n  <vType id="bike" vClass="bicycle"/>\n' + "\n".join(lines) + "\n</routes>\n",
+        encoding="utf-8",
+    )
     scenario = {
         "simulation": {"step_s": 0.1, "end_s": 200.0, "seed": 2},
         "network": {"net_file": str(REPO / "networks" / "straight" / "straight.net.xml")},
@@ -40,7 +48,8 @@ def test_persons_are_reported_apart_from_human_vehicles(write_scenario, tmp_path
     out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
     traffic = json.loads((out / "summary.json").read_text())["traffic"]
 
-    assert traffic["human_trips"] == CARS  # vehicles only, platoon excluded
+    assert traffic["human_trips"] == CARS  # cars only: no platoon, bicycle or person
+    assert traffic["other_trips"] == {"bicycle": BIKES}
     assert traffic["persons"] == PEDESTRIANS
     assert traffic["persons_finished"] == PEDESTRIANS
     assert 10.0 < traffic["person_mean_travel_time_s"] < 200.0  # 70 m at walking pace
