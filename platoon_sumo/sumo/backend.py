@@ -108,7 +108,6 @@ class SumoBackend:
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
-        self._type_sizes: dict[str, float] = {}
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
         self._in_network = 0
@@ -143,16 +142,16 @@ class SumoBackend:
             libsumo.simulationStep()
         except libsumo.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
-        veh, sizes = libsumo.vehicle, self._type_sizes
+        veh, classes = libsumo.vehicle, self._type_classes
         departed = self._departed = tuple(libsumo.simulation.getDepartedIDList())
         self._in_network += len(departed) - libsumo.simulation.getArrivedNumber()
         for vid in departed:
             type_id = veh.getTypeID(vid)
-            if type_id not in sizes:
+            if type_id not in classes:  # a type's first vehicle: its size and class
                 vt = libsumo.vehicletype
-                sizes[type_id] = float(vt.getLength(type_id) + vt.getWidth(type_id))
-                self._largest_m = max(self._largest_m, sizes[type_id])
-                self._type_classes[type_id] = str(vt.getVehicleClass(type_id))
+                size = float(vt.getLength(type_id) + vt.getWidth(type_id))
+                self._largest_m = max(self._largest_m, size)
+                classes[type_id] = str(vt.getVehicleClass(type_id))
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
         """The given vehicles and every vehicle whose front bumper lies within `radius_m`
