@@ -3,8 +3,11 @@
 Controllers track it, the loop measures progress and lateral offset on it. Points are
 resampled at a fixed spacing so that look-ups are index arithmetic, not searches. The
 per-step look-ups (``project``, ``point_at``, ``heading_at``, ``lane_step``) are scalar
-arithmetic on cached Python lists and a compiled projection kernel
-(``platoon_sumo.kernels.path``): a few microseconds a call.
+arithmetic on cached Python lists and compiled kernels (``platoon_sumo.kernels.route``:
+the projection searches only the blocks of the window that can hold the nearest point,
+the lane request reads lanes as numbers): a microsecond or two a call. The arrays the
+kernels need are cached on the path (``kernel_arrays``), so controllers that do their
+whole step in one kernel (``RouteFollowing``) share them.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.kernels.path import project_kernel
+from platoon_sumo.kernels.route import lane_step_kernel, path_blocks, project_pruned
 
 FloatArray = NDArray[np.float64]
 
@@ -135,6 +138,52 @@ class RoutePath:
         return np.ascontiguousarray(self.lane_width_m, dtype=np.float64)
 
     @cached_property
+    def _blocks(self) -> FloatArray:
+        """Bounding circles of the segments, ``BLOCK`` at a time (``path_blocks``)."""
+        return path_blocks(self._xy_c)
+
+    @cached_property
+    def _lane_codes(self) -> NDArray[np.int64]:
+        """Per point (edge number, lane index) of ``_lane_key_of_point`` for
+        ``lane_step_kernel`` (edge -1: a junction lane); no rows when a lane id does not
+        read as ``EDGE_INDEX`` (``lane_step`` then runs in Python)."""
+        edges: dict[str, int] = {}
+        per_lane = []
+        for id_ in self.lane_ids:
+            if id_.startswith(":"):
+                per_lane.append((-1, 0))
+                continue
+            key = id_.rsplit("_", 1)
+            if len(key) != 2:
+                return np.zeros((0, 2), dtype=np.int64)
+            try:
+                index = int(key[1])
+            except ValueError:
+                return np.zeros((0, 2), dtype=np.int64)
+            if abs(index) >= 2**62:
+                return np.zeros((0, 2), dtype=np.int64)
+            per_lane.append((edges.setdefault(key[0], len(edges)), index))
+        table = np.array(per_lane, dtype=np.int64).reshape(-1, 2)
+        return np.ascontiguousarray(table[np.asarray(self.lane_index, dtype=np.int64)])
+
+    @cached_property
+    def _lane_spans_c(self) -> FloatArray:
+        return np.array(self._lane_change_spans, dtype=np.float64).reshape(-1, 2)
+
+    @cached_property
+    def kernel_arrays(
+        self,
+    ) -> tuple[FloatArray, FloatArray, FloatArray, NDArray[np.int64], FloatArray, FloatArray]:
+        """What ``platoon_sumo.kernels.route.route_step_kernel`` reads of the path: the
+        points, their blocks, lane widths, lane codes, lane-change spans and
+        (spacing, length, last step)."""
+        geometry = np.array([self.spacing_m, self.length_m, self._last_step], dtype=np.float64)
+        return (
+            self._xy_c, self._blocks, self._lane_width_c, self._lane_codes,
+            self._lane_spans_c, geometry,
+        )  # fmt: skip
+
+    @cached_property
     def _lane_width(self) -> list[float]:
         return [float(w) for w in self.lane_width_m]
 
@@ -210,7 +259,15 @@ class RoutePath:
         """+1 / -1 when the target point lies in the lane to the left / right (or further)
         of the point's lane on the same edge; 0 otherwise, and where either lies in a
         junction or a lane-change stretch (lanes compared by the map, not by offsets)."""
-        # lane_beside twice, inline (called every step by followers)
+        codes = self._lane_codes
+        if len(codes):
+            step = lane_step_kernel(
+                codes, self._lane_width_c, self._lane_spans_c, self.spacing_m, float(s_m),
+                float(offset_m), float(target_s_m), float(target_offset_m),
+            )  # fmt: skip
+            if step != -2:
+                return int(step)
+        # (an unusual lane id, or a value that raises below) lane_beside twice, inline
         for begin, end in self._lane_change_spans:
             if begin <= s_m <= end or begin <= target_s_m <= end:
                 return 0
@@ -264,9 +321,9 @@ class RoutePath:
                     f"project: s_hint_m must be finite and window_m >= 0 and finite, got "
                     f"{s_hint_m!r} and {window_m!r}"
                 )
-        return project_kernel(
-            self._xy_c, self._lane_width_c, self.spacing_m, self.length_m, use_hint, hint,
-            window, float(x_m), float(y_m),
+        return project_pruned(
+            self._xy_c, self._blocks, self._lane_width_c, self.spacing_m, self.length_m,
+            use_hint, hint, window, float(x_m), float(y_m),
         )  # fmt: skip
 
     def curvature_1pm(self, smoothing_m: float) -> FloatArray:

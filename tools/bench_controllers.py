@@ -1,4 +1,4 @@
-"""Benchmark of the laser follower: CPU time per ``LaserFollower.step``, new vs reference.
+"""Benchmark of the controllers: CPU time per ``LaserFollower.step`` and ``RouteFollowing.step``.
 
 Replays the observations recorded from real closed-loop runs
 (``tests/control/data/*.obs.xz``, written by ``tests/control/observation_log.py``: the
@@ -8,7 +8,10 @@ the kernels replaced, kept as the test oracle ``tests/control/reference_laser_fo
 and through ``platoon_sumo.control.laser_follower.LaserFollower``; prints CPU
 microseconds per step for each and the speed-up, the same for ``RoutePath.project``,
 and the numba compile time of the kernels on their first call (cold, in a fresh process
-with an empty cache; and warm, loading them from that cache). Writes the table into
+with an empty cache; and warm, loading them from that cache). The same observations go
+through ``RouteFollowing`` (each log's ``fallback`` parameters, as a leader or the
+fallback would see them) and through its previous Python step
+(``tests/control/reference_route_following.py``). Writes the tables into
 ``docs/performance.md`` between ``<!-- bench_controllers -->`` and
 ``<!-- /bench_controllers -->`` (section "## Controllers"), leaving the rest alone.
 
@@ -63,6 +66,23 @@ def replay_us(cls: type, logs: Sequence[Any], repeats: int, timer: Callable[[], 
             for obs in log.observations:
                 step(obs)
             total += timer() - t0
+        best = min(best, total / steps * 1e6)
+    return float(best)
+
+
+def route_us(cls: type, logs: Sequence[Any], repeats: int) -> float:
+    """CPU microseconds per ``step`` of a route follower (``cls(log.params.fallback)``)
+    replaying every log: the best of ``repeats``."""
+    best = np.inf
+    steps = sum(len(log.observations) for log in logs)
+    for _ in range(repeats):
+        total = 0.0
+        for log in logs:
+            step = cls(log.params.fallback).step
+            t0 = time.process_time()
+            for obs in log.observations:
+                step(obs)
+            total += time.process_time() - t0
         best = min(best, total / steps * 1e6)
     return float(best)
 
@@ -157,7 +177,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     observation_log = importlib.import_module("tests.control.observation_log")
     reference = importlib.import_module("tests.control.reference_laser_follower")
     reference_path = importlib.import_module("tests.control.reference_path")
+    reference_route = importlib.import_module("tests.control.reference_route_following")
     from platoon_sumo.control.laser_follower import LaserFollower
+    from platoon_sumo.control.route_following import RouteFollowing
 
     paths = sorted(Path(p) for p in args.logs) if args.logs else list(observation_log.logs())
     result: dict[str, Any] = {"cases": []}
@@ -179,6 +201,13 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         name = path.name.removesuffix(".obs.xz")
         result["cases"].append((name, len(logs), steps, ref_us, new_us, follow_us))
         print(f"{name}: {steps} steps, reference {ref_us:.0f} us, new {new_us:.1f} us", flush=True)
+        route_us(RouteFollowing, logs, 1)  # warm
+        rf_new, rf_ref = np.inf, np.inf
+        for _ in range(args.repeats):
+            rf_new = min(rf_new, route_us(RouteFollowing, logs, 1))
+            rf_ref = min(rf_ref, route_us(reference_route.ReferenceRouteFollowing, logs, 1))
+        result.setdefault("route", []).append((name, steps, rf_ref, rf_new))
+        print(f"{name}: route following, before {rf_ref:.1f} us, new {rf_new:.1f} us", flush=True)
     result["project"] = project_us(all_logs, reference_path, args.repeats)
     return result
 
@@ -208,6 +237,14 @@ def render(result: dict[str, Any], command: str) -> str:
         f"| `RoutePath.project` per call (window of 4 lengths around the last arc length) "
         f"| {calls:,} calls | {ref_p:.1f} | **{new_p:.2f}** | {ref_p / new_p:,.0f}x | |"
     )
+    route_rows = [
+        "| Case | Steps | Reference µs/step | New µs/step | Speed-up |",
+        "|---|---|---:|---:|---:|",
+    ]
+    for name, steps, ref_us, new_us in result.get("route", []):
+        route_rows.append(
+            f"| `{name}` | {steps:,} | {ref_us:.1f} | **{new_us:.1f}** | {ref_us / new_us:.1f}x |"
+        )
     lines = [
         f"Command: `{command}`  ",
         f"Machine: {cpu_model()}, {os.cpu_count()} cores; "
@@ -217,7 +254,16 @@ def render(result: dict[str, Any], command: str) -> str:
         '"following" mode alone (wall clock): without the steps on the route-following '
         "fallback (its `RouteFollowing.step`) or stopping.",
         "",
+        "Laser follower (`LaserFollower.step`) against the numpy follower it replaced:",
+        "",
         *rows,
+        "",
+        "Route following (`RouteFollowing.step`, each log's `fallback` parameters, the "
+        "observations as a leader would get them) against the test oracle, its previous "
+        "Python step with the path look-ups as free functions "
+        "(`tests/control/reference_route_following.py`, slower than the step it copies):",
+        "",
+        *route_rows,
     ]
     if "first_call" in result:
         imp_cold, cold, imp_warm, warm = result["first_call"]

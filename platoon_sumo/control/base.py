@@ -146,11 +146,11 @@ def step_batch(
     for cls, indices in groups.items():
         many = getattr(cls, "step_many", None)
         if many is not None:
-            first = observations[indices[0]]
+            group = [observations[k] for k in indices]
             try:
-                out = many([controllers[k] for k in indices], [observations[k] for k in indices])
+                out = many([controllers[k] for k in indices], group)
             except Exception as exc:
-                raise _failure(cls, first, exc) from exc
+                raise _failure(cls, group, exc) from exc
             for k, command in zip(indices, out, strict=True):
                 commands[k] = _checked(cls, observations[k], command)
         else:
@@ -158,15 +158,19 @@ def step_batch(
                 try:
                     command = controllers[k].step(observations[k])
                 except Exception as exc:
-                    raise _failure(cls, observations[k], exc) from exc
+                    raise _failure(cls, [observations[k]], exc) from exc
                 commands[k] = _checked(cls, observations[k], command)
     return [c for c in commands if c is not None]
 
 
-def _failure(cls: type, obs: Observation, exc: Exception) -> PluginError:
+def _failure(cls: type, group: Sequence[Observation], exc: Exception) -> PluginError:
+    """The error naming the vehicle (or, for a ``step_many`` group, the vehicles) stepped."""
+    names = ", ".join(f"'{obs.vehicle_id}'" for obs in group[:10])
+    more = f" and {len(group) - 10} more" if len(group) > 10 else ""
+    whose = f"vehicle {names}" if len(group) == 1 else f"vehicles {names}{more} (one group)"
     return PluginError(
-        f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}' "
-        f"failed at t={obs.time_s:.2f} s: {type(exc).__name__}: {exc}"
+        f"controller {cls.__module__}.{cls.__qualname__} of {whose} failed at "
+        f"t={group[0].time_s:.2f} s: {type(exc).__name__}: {exc}"
     )
 
 

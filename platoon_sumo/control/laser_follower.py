@@ -69,7 +69,7 @@ Defaults are for cars (4.5 x 1.8 m, utm30lx, up to 14 m/s, dt 0.1 s). Robot scal
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import ClassVar, Literal
 
@@ -270,6 +270,7 @@ class LaserFollower:
         self.params = params or LaserFollowerParams()
         self.tracker = RearTracker(self.params.tracker)
         self._fallback = _RouteShadow(self.params.fallback)
+        self._telemetry: dict[str, Telemetry] = {}
         self._perception_array = params_array(self.params.perception)
         # the trail lives in rows [lo, hi) of a buffer: compacted when it is full, or
         # doubled (up to twice the most points kept) when more than half of it is trail
@@ -353,9 +354,7 @@ class LaserFollower:
             self._track = self._track_args = None
             if p.on_lost == "route_following":
                 self.mode = "route_following"
-                shadow = self._fallback.step(
-                    obs if obs.vehicle_ahead is None else replace(obs, vehicle_ahead=None)
-                )
+                shadow = self._fallback._step(obs, math.inf)  # blind to SUMO's leader
                 speed = self._guarded(obs, shadow)
                 yaw_rate, lane_change, heading = (
                     shadow.yaw_rate_radps,
@@ -367,8 +366,12 @@ class LaserFollower:
                 speed, yaw_rate = self._stop(obs)
         if self._blocked:
             speed, lane_change, heading = 0.0, 0, None
-        measured = self._measured_gap_m if self.mode == "following" else None
-        telemetry = Telemetry(mode=self.mode, measured_gap_m=measured, gap_policy=self.gap_policy)
+        if self.mode == "following":
+            telemetry = Telemetry(self.mode, self._measured_gap_m, self.gap_policy)
+        else:  # the same for every step in this mode (frozen): made once
+            telemetry = self._telemetry.get(self.mode) or self._telemetry.setdefault(
+                self.mode, Telemetry(self.mode, None, self.gap_policy)
+            )
         return Command(
             speed_mps=speed,
             yaw_rate_radps=yaw_rate,

@@ -4,6 +4,12 @@ The speed profile keeps under the lane speed limit, slows into curves so the lat
 acceleration stays under a bound, and stops comfortably at the stop line of a red or
 yellow signal (drives on through yellow when stopping would need hard braking).
 It is the car-scale leader and the fallback of followers that lost their predecessor.
+
+A step is one compiled kernel call (``platoon_sumo.kernels.route.route_step_kernel``:
+projection, speed profile, pure pursuit, lane request) after the signal and
+vehicle-ahead limits; what is per path (the curve speed limits, the path's arrays) and
+per vehicle limits (the kernel's parameter array) is computed once. The Python step it
+replaced is the test oracle (``tests/control/reference_route_following.py``).
 """
 
 from __future__ import annotations
@@ -17,8 +23,9 @@ import numpy as np
 from platoon_sumo.config_loader import require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
-from platoon_sumo.kernels.path import profile_speed_kernel
+from platoon_sumo.kernels.route import STEP_LANE_UNREAD, STEP_NOT_FINITE, route_step_kernel
 from platoon_sumo.path import RoutePath
+from platoon_sumo.vehicles import MotionLimits
 
 
 @dataclass(frozen=True)
@@ -68,9 +75,16 @@ class RouteFollowing:
 
     def __init__(self, params: RouteFollowingParams | None = None):
         self.params = params or RouteFollowingParams()
+        p = self.params
         self._s_m = 0.0
         self._path: RoutePath | None = None
         self._curve_speed_mps = np.zeros(0)
+        self._curve_nan = False
+        self._path_arrays: tuple[np.ndarray, ...] = ()
+        self._limits: MotionLimits | None = None
+        self._kernel_params = np.zeros(6)
+        self._signal_args = (p.comfort_decel_mps2, p.yellow_max_decel_mps2, p.stop_margin_m)
+        self._ahead_args = (p.standstill_gap_m, p.comfort_decel_mps2, p.time_gap_s)
 
     def reset(self) -> None:
         self._s_m = 0.0
@@ -87,72 +101,57 @@ class RouteFollowing:
                 self._curve_speed_mps = np.minimum(
                     self._curve_speed_mps, self.params.cruise_speed_mps
                 )
+            self._curve_speed_mps = np.ascontiguousarray(self._curve_speed_mps, dtype=np.float64)
+            self._curve_nan = bool(np.isnan(self._curve_speed_mps).any())
+            self._path_arrays = path.kernel_arrays
 
     def step(self, observation: Observation) -> Command:
-        obs, p = observation, self.params
-        path = obs.path
-        self._prepare(path)
-        lookahead = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
-        self._s_m = path.project(
-            obs.x_m, obs.y_m, s_hint_m=self._s_m, window_m=max(20.0, 3 * lookahead)
-        ).s_m
-        speed = min(self._profile_speed(obs), self._signal_speed(obs), self._following_speed(obs))
-        # Predict the speed the vehicle model will reach, so the arc has the right curvature.
-        limits = obs.limits
-        next_speed = min(
-            max(speed, obs.speed_mps - limits.max_decel_mps2 * obs.dt_s),
-            obs.speed_mps + limits.max_accel_mps2 * obs.dt_s,
-        )
-        tx, ty = path.point_at(self._s_m + lookahead)
-        if obs.lane_offset_m:  # aim along the lane SUMO drives in, beside the path's own
-            heading = path.heading_at(self._s_m + lookahead)
-            tx -= obs.lane_offset_m * math.sin(heading)
-            ty += obs.lane_offset_m * math.cos(heading)
-        dx, dy = tx - obs.x_m, ty - obs.y_m
-        dist = math.hypot(dx, dy)
-        alpha = math.atan2(dy, dx) - obs.yaw_rad
-        curvature = 2.0 * math.sin(alpha) / dist if dist > 1e-6 else 0.0
-        return Command(
-            speed_mps=speed,
-            yaw_rate_radps=max(next_speed, 0.0) * curvature,
-            lane_change=self._lane_request(obs),
-        )
-
-    def _lane_request(self, obs: Observation) -> int:
-        """Where SUMO steers (lane actuation): +1 / -1 towards the lane the route path
-        plans on this edge, early (SUMO changes lanes only once it must, and at a queue
-        it may not get in any more); 0 on the planned lane, in junctions and during the
-        path's own lane changes."""
-        if not obs.lane_offset_m:
-            return 0
-        return obs.path.lane_step(self._s_m, obs.lane_offset_m, self._s_m, 0.0)
-
-    def _profile_speed(self, obs: Observation) -> float:
-        """Highest speed from which every speed limit ahead is reachable at comfort decel."""
-        path, b = obs.path, self.params.comfort_decel_mps2
-        v_max = float(max(obs.limits.max_speed_mps, obs.speed_mps))
-        preview_m = v_max**2 / (2 * b) + 2 * obs.length_m
-        i0 = int(self._s_m // path.spacing_m)
-        i1 = min(len(path.xy_m), i0 + int(preview_m / path.spacing_m) + 2)
-        i0 = min(max(i0, 0), i1)
-        reachable = profile_speed_kernel(
-            self._curve_speed_mps, i0, i1, path.spacing_m, obs.front_offset_m, b, v_max
-        )
-        return float(min(reachable, obs.limits.max_speed_mps))
-
-    def _following_speed(self, obs: Observation) -> float:
-        """Keep a safe distance to the vehicle ahead (braking at comfort decel suffices)."""
-        ahead = obs.vehicle_ahead
+        ahead = observation.vehicle_ahead
         if ahead is None:
-            return math.inf
-        p = self.params
-        return safe_following_speed(
-            ahead.gap_m, ahead.speed_mps, p.standstill_gap_m, p.comfort_decel_mps2, p.time_gap_s
-        )
+            return self._step(observation, math.inf)
+        limit = safe_following_speed(ahead.gap_m, ahead.speed_mps, *self._ahead_args)
+        return self._step(observation, limit)
 
-    def _signal_speed(self, obs: Observation) -> float:
-        p = self.params
-        return signal_speed_limit(
-            obs.signal, obs.speed_mps, obs.dt_s, p.comfort_decel_mps2, p.yellow_max_decel_mps2,
-            p.stop_margin_m,
+    def _step(self, obs: Observation, ahead_limit_mps: float) -> Command:
+        """``step`` with the vehicle-ahead speed limit given (inf: none; the laser
+        follower's fallback steps blind to SUMO's leader)."""
+        path = obs.path
+        if path is not self._path:
+            self._prepare(path)
+        if obs.limits is not self._limits:
+            self._set_limits(obs.limits)
+        signal = obs.signal
+        if signal is None or not signal.is_stop:
+            signal_limit = math.inf
+        else:
+            signal_limit = signal_speed_limit(signal, obs.speed_mps, obs.dt_s, *self._signal_args)
+        xy, blocks, widths, codes, spans, geometry = self._path_arrays
+        status, s, speed, yaw_rate, lane = route_step_kernel(
+            xy, blocks, widths, codes, spans, geometry, self._curve_speed_mps, self._curve_nan,
+            self._kernel_params, self._s_m, obs.x_m, obs.y_m, obs.yaw_rad, obs.speed_mps,
+            obs.front_offset_m, obs.length_m, obs.dt_s, obs.lane_offset_m, signal_limit,
+            ahead_limit_mps,
         )  # fmt: skip
+        if status == STEP_NOT_FINITE:
+            raise ValueError(
+                f"route following cannot step from a non-finite state: x={obs.x_m} "
+                f"y={obs.y_m} speed={obs.speed_mps} length={obs.length_m} "
+                f"lane offset={obs.lane_offset_m} "
+                f"max speed={obs.limits.max_speed_mps} (arc length {self._s_m})"
+            )
+        self._s_m = s
+        if status == STEP_LANE_UNREAD:  # lane ids that do not read as EDGE_INDEX
+            lane = path.lane_step(s, obs.lane_offset_m, s, 0.0)
+        return Command(speed_mps=speed, yaw_rate_radps=yaw_rate, lane_change=lane)
+
+    def _set_limits(self, limits: MotionLimits) -> None:
+        """The kernel's parameters (``PARAM_NAMES``) with these limits."""
+        p = self.params
+        self._kernel_params = np.array(
+            [
+                p.lookahead_min_m, p.lookahead_time_s, p.comfort_decel_mps2,
+                limits.max_speed_mps, limits.max_decel_mps2, limits.max_accel_mps2,
+            ],
+            dtype=np.float64,
+        )  # fmt: skip
+        self._limits = limits

@@ -53,14 +53,32 @@ def project_kernel(
         elif d2 != d2:  # NaN (a NaN point): the first one wins, as np.argmin has it
             best, best_k, best_t, best_len2 = d2, k, t, len2
             break
-    ax = xy[best_k, 0]
-    ay = xy[best_k, 1]
-    dx = xy[best_k + 1, 0] - ax
-    dy = xy[best_k + 1, 1] - ay
+    return projection_at(xy, widths, spacing, length, x, y, best_k, best_t, best_len2, best)
+
+
+@njit(cache=True)
+def projection_at(
+    xy: np.ndarray,
+    widths: np.ndarray,
+    spacing: float,
+    length: float,
+    x: float,
+    y: float,
+    k: int,
+    t: float,
+    len2: float,
+    d2: float,
+) -> tuple[float, float, float]:
+    """(arc length, signed lateral offset, lane width) of (x, y) projected at ``t`` on
+    segment ``k`` (squared length ``len2``, squared distance ``d2``): left is positive."""
+    ax = xy[k, 0]
+    ay = xy[k, 1]
+    dx = xy[k + 1, 0] - ax
+    dy = xy[k + 1, 1] - ay
     cross = dx * (y - ay) - dy * (x - ax)
-    s = min(best_k * spacing + best_t * math.sqrt(best_len2), length)
+    s = min(k * spacing + t * math.sqrt(len2), length)
     width = widths[min(int(s // spacing), widths.size - 1)]
-    return s, math.copysign(math.sqrt(best), cross), width
+    return s, math.copysign(math.sqrt(d2), cross), width
 
 
 @njit(cache=True)

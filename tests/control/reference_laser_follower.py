@@ -2,8 +2,10 @@
 before the fast path, kept so the equivalence tests and ``tools/bench_controllers.py``
 can replay recorded observations through it. Changes from the original: it imports the
 reference perception (``reference_perception.py``), uses the reference route-path
-look-ups (``reference_path.py``) instead of ``RoutePath``'s methods, and is not
-registered as a controller. Do not use in package code, do not change.
+look-ups (``reference_path.py``) instead of ``RoutePath``'s methods, its route-following
+fallback is the reference one (``reference_route_following.py``: ``RouteFollowing`` as it
+was before its step became a kernel), and it is not registered as a controller. Do not
+use in package code, do not change.
 
 Laser-only follower: tracks the predecessor's rear in the scan and drives on its path.
 
@@ -78,11 +80,12 @@ import numpy as np
 from platoon_sumo.config_loader import require, require_choice, require_positive
 from platoon_sumo.control.base import Command, GapPolicy, Observation, Telemetry
 from platoon_sumo.control.perception import PerceptionParams, TrackerParams
-from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.control.route_following import RouteFollowingParams
 from platoon_sumo.path import FloatArray, PathPoint, RoutePath
 from platoon_sumo.sensors.laser import LaserScan
 from tests.control.reference_path import lane_step, point_at, project
 from tests.control.reference_perception import RearTracker, SensorPose, detect_rears
+from tests.control.reference_route_following import ReferenceRouteFollowing
 
 _POLICIES = ("constant_distance", "constant_time_gap")
 _ON_LOST = ("stop", "route_following")
@@ -209,7 +212,7 @@ class ReferenceLaserFollower:
     def __init__(self, params: LaserFollowerParams | None = None):
         self.params = params or LaserFollowerParams()
         self.tracker = RearTracker(self.params.tracker)
-        self._fallback = RouteFollowing(self.params.fallback)
+        self._fallback = ReferenceRouteFollowing(self.params.fallback)
         self.reset()
 
     # ------------------------------------------------------------------ public API
