@@ -117,6 +117,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
             "depart_pos_m or first edge)"
         )
         print(f"warning: platoon '{pid}' was never inserted: {why}", file=sys.stderr)
+    if s.get("members_not_inserted"):
+        print(
+            f"warning: {len(s['members_not_inserted'])} platoon member(s) still waited for "
+            "room on their first edge at the end: "
+            + ", ".join(s["members_not_inserted"][:SHOWN_WARNINGS]),
+            file=sys.stderr,
+        )
     for removed in s.get("removed_off_route", []):
         print(f"warning: taken out of the run: {removed['reason']}", file=sys.stderr)
     for jam in s.get("gridlock_events", [])[:3]:

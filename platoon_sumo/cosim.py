@@ -98,6 +98,11 @@ class CoSimulation:
         """Platoons never inserted (their depart time or first-lane room not yet come)."""
         return list(self.ctx.pending)
 
+    @property
+    def queued_members(self) -> list[str]:
+        """Members of inserted platoons still waiting for room on their first edge."""
+        return [m.vehicle_id for _, rest in self.ctx.queued.values() for m in rest]
+
     def run(self) -> RunOutcome:
         """Step to the end time. Every hook's `on_end` runs, also when a stage or hook
         fails or the run is interrupted, so recorders keep every row produced."""

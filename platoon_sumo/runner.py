@@ -228,6 +228,7 @@ def _summary(plan: RunPlan, sim: CoSimulation, end_time_s: float, wall_s: float)
         },
         "all_vehicles": {"departed": ctx.departed_total, "arrived": ctx.arrived_total},
         "platoons_not_inserted": sorted(p.config.id for p in sim.pending_platoons),
+        "members_not_inserted": sorted(sim.queued_members),
         **event_summary(events, {m.vehicle_id for p in plan.platoons for m in p.members}),
     }
 

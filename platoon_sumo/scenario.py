@@ -400,7 +400,9 @@ class PlatoonConfig:
     spacing_m: float = 8.0
     """Initial bumper-to-bumper gap between members [m]."""
     depart_pos_m: float | None = None
-    """Leader's front bumper on the first edge [m]; default: just room for everyone."""
+    """Leader's front bumper on the first edge [m]; default: just room for everyone (or
+    2 m before the edge's end). Members that do not fit behind it depart one by one, in order, as
+    the ones ahead leave room."""
     depart_lane: int | None = None
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
@@ -583,6 +585,11 @@ class SensorPlan:
     params: Any
 
 
+#: A platoon longer than its first edge starts with its leader this far before the
+#: edge's end (not on a stop line) [m].
+DEPART_BEFORE_END_M = 2.0
+
+
 @dataclass(frozen=True)
 class MemberPlan:
     vehicle_id: str
@@ -593,6 +600,9 @@ class MemberPlan:
     controller_params: Any
     depart_pos_m: float
     sensors: tuple[SensorPlan, ...] = ()
+    waits_for_room: bool = False
+    """The platoon does not fit on its first edge: this member departs after the one
+    ahead of it, once that one has left room (at the rearmost slot that fits)."""
 
     @property
     def laser(self) -> LaserConfig | None:
@@ -806,21 +816,29 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         )  # fmt: skip
     need = p.members * p.vehicle.length_m + (p.members - 1) * p.spacing_m
     edge_len = network.edge_length_m(first)
-    depart_pos = p.depart_pos_m if p.depart_pos_m is not None else need + 0.1
     if p.depart_pos_m is not None and not 0 < p.depart_pos_m <= edge_len:
         raise ScenarioError(
             file, f"{key}.depart_pos_m",
             f"must be in (0, {edge_len:.1f}] m, the length of edge '{first}'",
         )  # fmt: skip
-    if depart_pos < need or depart_pos > edge_len:
+    if edge_len < p.vehicle.length_m:
         raise ScenarioError(
-            file,
-            f"{key}.members",
-            f"{p.members} members of {p.vehicle.length_m} m with {p.spacing_m} m gaps need "
-            f"{need:.1f} m behind the leader's depart position {depart_pos:.1f} m on edge "
-            f"'{first}' ({edge_len:.1f} m long)",
-            "start the route on a longer edge, or use fewer members or a smaller spacing_m",
-        )
+            file, f"{key}.route",
+            f"the first edge '{first}' ({edge_len:.1f} m) is shorter than one member "
+            f"({p.vehicle.length_m} m)", "start the route on a longer edge",
+        )  # fmt: skip
+    depart_pos = p.depart_pos_m
+    if depart_pos is None:  # room for all, else the leader a little before the edge's end
+        depart_pos = min(need + 0.1, max(edge_len - DEPART_BEFORE_END_M, p.vehicle.length_m))
+    if depart_pos < p.vehicle.length_m:
+        raise ScenarioError(
+            file, f"{key}.depart_pos_m",
+            f"the leader's front at {depart_pos:.1f} m leaves no room for its "
+            f"{p.vehicle.length_m} m length on edge '{first}'",
+            f"use at least {p.vehicle.length_m}",
+        )  # fmt: skip
+    slot_m = p.vehicle.length_m + p.spacing_m
+    fitting = min(p.members, int((depart_pos - p.vehicle.length_m) // slot_m) + 1)
     members = []
     for k, vid in enumerate(p.member_ids()):
         role = "leader" if k == 0 else "follower"
@@ -831,9 +849,10 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         except LookupError as exc:
             raise ScenarioError(file, f"{ctrl_key}.type", str(exc)) from None
         params = load_dataclass(cls.Params, dict(ctrl.params), file, f"{ctrl_key}.params")
-        pos = depart_pos - k * (p.vehicle.length_m + p.spacing_m)
+        # members beyond the first edge's room wait at the rearmost slot that fits
+        pos = depart_pos - min(k, fitting - 1) * slot_m
         sensors = _sensors(ctrl, file, ctrl_key)
-        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, sensors))
+        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, sensors, k >= fitting))
     return PlatoonPlan(
         config=p,
         edges=edges,

@@ -288,11 +288,11 @@ CASES = [
     ),
     # ------------------------------------------------------------------ platoons
     Case(
-        "impossible_platoon",
-        "platoons[0].members",
-        ("12 members", "edge 'left1A1'", "89.6 m long"),
-        put("platoons.0.members", 12),
-        hint="start the route on a longer edge, or use fewer members or a smaller spacing_m",
+        "leader_without_room",
+        "platoons[0].depart_pos_m",
+        ("front at 2.0 m", "4.5 m length", "edge 'left1A1'"),
+        put("platoons.0.depart_pos_m", 2.0),
+        hint="use at least 4.5",
     ),
     Case(
         "depart_pos_beyond_edge",

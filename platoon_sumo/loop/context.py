@@ -65,6 +65,9 @@ class StepContext:
     """Platoons not inserted yet (due ones wait for room on their first lane)."""
     waiting: dict[str, MemberPlan] = field(default_factory=dict)
     """Members handed to SUMO that have not departed yet."""
+    queued: dict[str, tuple[PlatoonPlan, list[MemberPlan]]] = field(default_factory=dict)
+    """Per inserted platoon, the members still to hand to SUMO one by one (the platoon
+    did not fit on its first edge), in order."""
     steps: int = 0
     departed_total: int = 0
     arrived_total: int = 0

@@ -1,4 +1,5 @@
-"""Platoons enter the network whole; SUMO's arrivals and departures are booked."""
+"""Platoons enter the network whole (or, longer than their first edge, member by member);
+SUMO's arrivals and departures are booked."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import Member
 from platoon_sumo.path import RoutePath
-from platoon_sumo.scenario import PlatoonPlan
+from platoon_sumo.scenario import MemberPlan, PlatoonPlan
 
 #: Room kept free behind the last member when a platoon is inserted [m] (the rear
 #: member's follower keeps its minGap).
@@ -15,30 +16,51 @@ INSERT_ROOM_BEHIND_M = 10.0
 
 
 class InsertDue:
-    """Hand each due platoon to SUMO as a whole once its first lane is free from
+    """Hand each due platoon to SUMO once its first lane is free from
     `INSERT_ROOM_BEHIND_M` behind its last member to `spacing_m` ahead of its leader (a
     platoon never starts scattered behind other traffic); a platoon still waiting does
-    not hold back later ones."""
+    not hold back later ones. A platoon longer than its first edge has room for goes in
+    with the members that fit; each of the others follows, in order, once the member
+    ahead of it has departed and its slot is free in the same way."""
 
     def __call__(self, ctx: StepContext) -> None:
         time_s = ctx.world.time_s
         for platoon in [p for p in ctx.pending if p.config.depart_s <= time_s + 1e-9]:
-            cfg = platoon.config
-            lane = f"{platoon.edges[0]}_{platoon.depart_lane}"
-            front = platoon.members[0].depart_pos_m
-            rear = platoon.members[-1].depart_pos_m - cfg.vehicle.length_m
-            if not ctx.backend.lane_is_free(
-                lane, rear - INSERT_ROOM_BEHIND_M, front + cfg.spacing_m
-            ):
+            first = [m for m in platoon.members if not m.waits_for_room]
+            if _room_for(ctx, platoon, first):
+                ctx.pending.remove(platoon)
+                _hand_over(ctx, platoon, first)
+                rest = [m for m in platoon.members if m.waits_for_room]
+                if rest:
+                    ctx.queued[platoon.config.id] = (platoon, rest)
+        for pid, (platoon, rest) in list(ctx.queued.items()):
+            ahead = platoon.members[rest[0].index - 1].vehicle_id
+            if ahead in ctx.waiting or not _room_for(ctx, platoon, rest[:1]):
                 continue
-            ctx.pending.remove(platoon)
-            drives = ACTUATORS.get(cfg.actuation).sumo_drives
-            for member in platoon.members:
-                ctx.backend.add_vehicle(
-                    member.vehicle_id, platoon.edges, platoon.type_id, platoon.depart_lane,
-                    member.depart_pos_m, sumo_drives=drives,
-                )  # fmt: skip
-                ctx.waiting[member.vehicle_id] = member
+            _hand_over(ctx, platoon, rest[:1])
+            del rest[0]
+            if not rest:
+                del ctx.queued[pid]
+
+
+def _room_for(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]) -> bool:
+    """The first lane is free from `INSERT_ROOM_BEHIND_M` behind the last of `members`
+    to `spacing_m` ahead of the first."""
+    cfg = platoon.config
+    front = members[0].depart_pos_m
+    rear = members[-1].depart_pos_m - cfg.vehicle.length_m
+    lane = f"{platoon.edges[0]}_{platoon.depart_lane}"
+    return ctx.backend.lane_is_free(lane, rear - INSERT_ROOM_BEHIND_M, front + cfg.spacing_m)
+
+
+def _hand_over(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]) -> None:
+    drives = ACTUATORS.get(platoon.config.actuation).sumo_drives
+    for member in members:
+        ctx.backend.add_vehicle(
+            member.vehicle_id, platoon.edges, platoon.type_id, platoon.depart_lane,
+            member.depart_pos_m, sumo_drives=drives,
+        )  # fmt: skip
+        ctx.waiting[member.vehicle_id] = member
 
 
 class Arrivals:

@@ -179,3 +179,38 @@ def test_lane_change_waits_for_a_gap_in_the_target_lane(write_scenario, tmp_path
     assert summary["platoon_vehicles"]["arrived"] == 1
     assert (traj["supervisor"] == "merge").sum() > 5  # it had to wait for a gap
     assert "A0B0_1" in set(traj["lane_id"])  # and then changed lanes
+
+
+def test_platoon_longer_than_its_first_edge_departs_member_by_member(write_scenario, tmp_path):
+    # 12 cars of 4.5 m with 8 m gaps need 142 m; the first edge is 89.6 m: 7 fit
+    route = {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]}
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 150.0, "seed": 5},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "platoons": [{
+            "id": "long", "members": 12, "spacing_m": 8.0, "depart_s": 2.0, "route": route,
+            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                         "params": {"on_lost": "route_following"}},
+        }],
+    }  # fmt: skip
+    plan = load_plan(write_scenario(scenario))
+    waits = [m.waits_for_room for m in plan.platoons[0].members]
+    assert waits == [False] * 7 + [True] * 5
+    out = run(plan, tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    assert summary["platoon_vehicles"]["departed"] == 12
+    assert summary["platoon_vehicles"]["arrived"] == 12
+    assert summary["collisions"] == 0 and summary["red_light_violations"] == 0
+    assert summary["members_not_inserted"] == [] and summary["platoons_not_inserted"] == []
+    ids = [f"long.{k}" for k in range(12)]
+    first_seen = traj.groupby("vehicle_id")["time_s"].min()[ids]
+    assert first_seen.iloc[:7].nunique() == 1  # the members that fit came in together
+    # the others one by one, in order, each after the one ahead of it
+    assert (first_seen.diff().iloc[7:] > 0).all()
+    # each entered with at least the platoon's spacing to the member ahead
+    entry = traj.loc[traj.groupby("vehicle_id")["time_s"].idxmin()].set_index("vehicle_id")
+    assert (entry.loc[ids[7:], "gap_to_predecessor_m"] >= 8.0 - 0.5).all()
+    # and followed it: the laser saw its predecessor most of the way
+    followers = traj[traj["vehicle_id"].isin(ids[7:])]
+    assert followers["predecessor_in_view"].mean() > 0.8

@@ -101,6 +101,37 @@ def test_insert_waits_for_room_on_the_first_lane_then_hands_over_the_whole_plato
     assert ctx.pending == [] and set(ctx.waiting) == {"p.0", "p.1", "p.2"}
 
 
+def test_members_beyond_the_first_edge_follow_one_by_one_when_the_one_ahead_left_room(
+    write_scenario,
+):
+    # leader at 20 m, slots of 4.5 + 5 m: members 0 and 1 fit, 2 and 3 wait at 10.5 m
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=4, depart_pos_m=20.0), backend)
+    members = ctx.pending[0].members
+    assert [m.waits_for_room for m in members] == [False, False, True, True]
+    assert [m.depart_pos_m for m in members] == [20.0, 10.5, 10.5, 10.5]
+    InsertDue()(ctx)
+    assert [vid for vid, _ in backend.queued] == ["p.0", "p.1"]
+    InsertDue()(ctx)  # p.1 has not departed yet: p.2 waits
+    assert [vid for vid, _ in backend.queued] == ["p.0", "p.1"]
+    backend.step()
+    ctx.waiting.clear()  # (Departures' job)
+    InsertDue()(ctx)  # departed, but p.1 still covers the slot
+    assert backend.queued == []
+    backend.vehicles["p.1"].x_m = 10.5 + 4.5 + 5.0 - 0.01  # not quite a spacing ahead
+    InsertDue()(ctx)
+    assert backend.queued == []
+    backend.vehicles["p.1"].x_m = 10.5 + 4.5 + 5.0 + 0.01
+    InsertDue()(ctx)
+    assert [vid for vid, _ in backend.queued] == ["p.2"]  # one at a time, in order
+    assert ctx.queued["p"][1] == [members[3]]
+    backend.step()
+    ctx.waiting.clear()
+    backend.vehicles["p.2"].x_m = 30.0
+    InsertDue()(ctx)
+    assert [vid for vid, _ in backend.queued] == ["p.3"] and ctx.queued == {}
+
+
 def test_departures_build_members_from_sumo_poses_and_emit_departed(write_scenario):
     backend = FakeBackend()
     ctx = context(plan(write_scenario), backend)
