@@ -2,7 +2,8 @@
 
 `TrajectoryRecorder` writes one row per platoon vehicle per step (columns and units in
 `TRAJECTORY_COLUMNS` and docs/outputs.md) as CSV or Parquet, appending every
-`chunk_rows` rows, and feeds the same rows to a `RunStats` for the run's summaries.
+`chunk_rows` rows, and feeds the same step, as columns, to a `RunStats` for the run's
+summaries. A step's rows are built column by column over all platoon vehicles.
 Its memory is bounded: one chunk of rows, per-vehicle running sums, and per-vehicle
 trails of recent positions (pruned as the follower passes them, capped in length).
 
@@ -21,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from platoon_sumo.events import EVENT_COLUMNS, event_row
-from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord, VehicleRecord
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord
 from platoon_sumo.metrics.kernels import (
     PathTrail,
     jerk_mps3,
@@ -96,7 +97,7 @@ class TableWriter:
 class TrajectoryRecorder(StepHook):
     """Appends one row per platoon vehicle per step; flushes every `chunk_rows` rows.
 
-    `stats` (if given) receives every step's rows and the step's collisions and
+    `stats` (if given) receives every step's columns and the step's collisions and
     red-light violations. `write=False` keeps only the statistics (no table).
     """
 
@@ -124,78 +125,108 @@ class TrajectoryRecorder(StepHook):
             self.writer.open()
 
     def on_step(self, record: StepRecord) -> None:
-        by_id = {v.id: v for v in record.vehicles}
-        for v in record.vehicles:  # every trail first, then measure against them
+        vehicles = record.vehicles
+        for v in vehicles:  # every trail first, then measure against them
             trail = self._trails.get(v.id)
             if trail is None:
                 spacing = TRAIL_SPACING_LENGTHS * v.length_m
                 trail = self._trails[v.id] = PathTrail(spacing, TRAIL_MAX_POINTS)
             trail.append(v.front_x_m, v.front_y_m)
-        rows = [self._row(v, record, by_id) for v in record.vehicles]
-        followed = {v.predecessor_id for v in record.vehicles}
+        columns = self._columns(record)
+        followed = {v.predecessor_id for v in vehicles}
         for vid, trail in self._trails.items():
             if vid not in followed:
                 trail.keep_last(2)  # nobody measures against it: keep only its end
-        for gone in set(self._trails) - set(by_id):  # arrived: forget (bounded memory)
+        present = {v.id for v in vehicles}
+        for gone in set(self._trails) - present:  # arrived: forget (bounded memory)
             del self._trails[gone]
             self._accel.pop(gone, None)
         if self.stats is not None:
-            self.stats.add_step(record.time_s, rows)
+            self.stats.add_step(record.time_s, columns)
             self.stats.add_events(record.events)
         if self.writer is not None:
-            if rows and self.rows_written + len(self._rows) == 0:
-                assert tuple(rows[0]) == TRAJECTORY_COLUMNS, "row keys out of column order"
-            self._rows.extend(tuple(row.values()) for row in rows)
+            if vehicles and self.rows_written + len(self._rows) == 0:
+                assert tuple(columns) == TRAJECTORY_COLUMNS, "columns out of order"
+            self._rows.extend(zip(*columns.values(), strict=True))
             if len(self._rows) >= self.chunk_rows:
                 self.flush()
 
-    def _row(
-        self, v: VehicleRecord, record: StepRecord, by_id: dict[str, VehicleRecord]
-    ) -> dict[str, Any]:
-        i = record.world.index.get(v.id)
-        signal, ahead = v.signal, v.vehicle_ahead
-        speed = v.speed_mps
-        pred = by_id.get(v.predecessor_id) if v.predecessor_id else None
-        pred_speed = pred.speed_mps if pred is not None else None
-        gap = v.gap_to_predecessor_m
-        telemetry = v.telemetry
-        policy = telemetry.gap_policy if telemetry is not None else None
-        desired = policy.desired_m(speed) if policy is not None and v.predecessor_id else None
-        measured = telemetry.measured_gap_m if telemetry is not None else None
-        jerk = jerk_mps3(v.accel_mps2, self._accel.get(v.id), self._dt_s)
-        self._accel[v.id] = v.accel_mps2
-        trail = self._trails.get(v.predecessor_id) if v.predecessor_id else None
-        in_view = None
-        if v.predecessor_id is not None and v.predecessor_rays is not None:
-            in_view = int(v.predecessor_rays > 0)
-        cmd, executed = v.command, v.executed
-        fx, fy = v.front_x_m, v.front_y_m
+    def _columns(self, record: StepRecord) -> dict[str, list[Any]]:
+        """The step's rows as columns (in `TRAJECTORY_COLUMNS` order), one list
+        comprehension a column (docs/outputs.md defines each)."""
+        vs = record.vehicles
+        lane_ids, index = record.world.lane_ids, record.world.index
+        speed_of = {v.id: v.speed_mps for v in vs}
+        has_pred = [v.predecessor_id is not None for v in vs]
+        pred_speed = [speed_of.get(v.predecessor_id or "") for v in vs]
+        gaps = [v.gap_to_predecessor_m for v in vs]
+        telemetry = [v.command.telemetry for v in vs]
+        desired = [
+            t.gap_policy.desired_m(v.speed_mps)
+            if h and t is not None and t.gap_policy is not None
+            else None
+            for v, t, h in zip(vs, telemetry, has_pred, strict=True)
+        ]
+        previous_accel = self._accel
+        jerk = [jerk_mps3(v.accel_mps2, previous_accel.get(v.id), self._dt_s) for v in vs]
+        for v in vs:
+            previous_accel[v.id] = v.accel_mps2
+        trails = self._trails
+        signals = [v.signal for v in vs]
+        aheads = [v.vehicle_ahead for v in vs]
+        rays = [v.predecessor_rays if h else None for v, h in zip(vs, has_pred, strict=True)]
+        time_s = round(record.time_s, 6)
         return {
-            "time_s": round(record.time_s, 6), "vehicle_id": v.id,
-            "platoon_id": v.platoon_id, "member_index": v.index, "role": v.role,
-            "x_m": fx, "y_m": fy, "yaw_rad": v.yaw_rad, "speed_mps": speed,
-            "accel_mps2": v.accel_mps2, "jerk_mps3": jerk,
-            "cmd_speed_mps": _finite(cmd.speed_mps), "cmd_yaw_rate_radps": cmd.yaw_rate_radps,
-            "cmd_heading_rad": cmd.heading_rad,
-            "executed_speed_mps": _finite(executed.speed_mps),
-            "route_s_m": v.route_s_m, "lateral_offset_m": v.lateral_offset_m,
-            "lane_width_m": v.lane_width_m,
-            "lane_id": record.world.lane_ids[i] if i is not None else None,
-            "signal_tls": signal.tls_id if signal else None,
-            "signal_state": signal.state if signal else None,
-            "signal_distance_m": signal.distance_m if signal else None,
-            "ahead_id": ahead.vehicle_id if ahead else None,
-            "ahead_gap_m": ahead.gap_m if ahead else None,
-            "predecessor_id": v.predecessor_id, "predecessor_speed_mps": pred_speed,
-            "gap_to_predecessor_m": gap,
-            "measured_gap_m": measured if v.predecessor_id else None,
-            "desired_gap_m": desired, "spacing_error_m": spacing_error_m(gap, desired),
-            "time_headway_s": time_headway_s(gap, speed) if v.predecessor_id else None,
-            "ttc_s": time_to_collision_s(gap, speed, pred_speed),
-            "lateral_deviation_m": trail.deviation(fx, fy) if trail is not None else None,
-            "predecessor_rays": v.predecessor_rays if v.predecessor_id else None,
-            "predecessor_in_view": in_view,
-            "supervisor": v.supervisor_state or None,
+            "time_s": [time_s] * len(vs),
+            "vehicle_id": [v.id for v in vs],
+            "platoon_id": [v.platoon_id for v in vs],
+            "member_index": [v.index for v in vs],
+            "role": [v.role for v in vs],
+            "x_m": [v.front_x_m for v in vs],
+            "y_m": [v.front_y_m for v in vs],
+            "yaw_rad": [v.yaw_rad for v in vs],
+            "speed_mps": [v.speed_mps for v in vs],
+            "accel_mps2": [v.accel_mps2 for v in vs],
+            "jerk_mps3": jerk,
+            "cmd_speed_mps": [_finite(v.command.speed_mps) for v in vs],
+            "cmd_yaw_rate_radps": [v.command.yaw_rate_radps for v in vs],
+            "cmd_heading_rad": [v.command.heading_rad for v in vs],
+            "executed_speed_mps": [_finite(v.executed.speed_mps) for v in vs],
+            "route_s_m": [v.route_s_m for v in vs],
+            "lateral_offset_m": [v.lateral_offset_m for v in vs],
+            "lane_width_m": [v.lane_width_m for v in vs],
+            "lane_id": [lane_ids[i] if (i := index.get(v.id)) is not None else None for v in vs],
+            "signal_tls": [s.tls_id if s else None for s in signals],
+            "signal_state": [s.state if s else None for s in signals],
+            "signal_distance_m": [s.distance_m if s else None for s in signals],
+            "ahead_id": [a.vehicle_id if a else None for a in aheads],
+            "ahead_gap_m": [a.gap_m if a else None for a in aheads],
+            "predecessor_id": [v.predecessor_id for v in vs],
+            "predecessor_speed_mps": pred_speed,
+            "gap_to_predecessor_m": gaps,
+            "measured_gap_m": [
+                t.measured_gap_m if h and t is not None else None
+                for t, h in zip(telemetry, has_pred, strict=True)
+            ],
+            "desired_gap_m": desired,
+            "spacing_error_m": [spacing_error_m(g, d) for g, d in zip(gaps, desired, strict=True)],
+            "time_headway_s": [
+                time_headway_s(g, v.speed_mps) if h else None
+                for g, v, h in zip(gaps, vs, has_pred, strict=True)
+            ],
+            "ttc_s": [
+                time_to_collision_s(g, v.speed_mps, p)
+                for g, v, p in zip(gaps, vs, pred_speed, strict=True)
+            ],
+            "lateral_deviation_m": [
+                trail.deviation(v.front_x_m, v.front_y_m)
+                if h and (trail := trails.get(v.predecessor_id)) is not None  # type: ignore[arg-type]
+                else None
+                for v, h in zip(vs, has_pred, strict=True)
+            ],
+            "predecessor_rays": rays,
+            "predecessor_in_view": [int(r > 0) if r is not None else None for r in rays],
+            "supervisor": [v.supervisor_state or None for v in vs],
         }  # fmt: skip
 
     def flush(self) -> None:

@@ -14,11 +14,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import PathTrail
-from platoon_sumo.metrics.stats import RunStats, table_rows
+from platoon_sumo.metrics.stats import RunStats, given, table_steps
 
 __all__ = ["RunStats", "follower_metrics", "read_events", "summarise_trajectories"]
 
@@ -38,19 +39,18 @@ def summarise_trajectories(
     replay = "lateral_deviation_m" not in trajectories.columns
     trails: dict[str, PathTrail] = {}
     stats = RunStats(planned, start_s)
-    for time_s, rows in table_rows(trajectories):
+    for time_s, columns in table_steps(trajectories):
         if replay:
-            for row in rows:
-                trails.setdefault(str(row["vehicle_id"]), PathTrail(0.0)).append(
-                    float(row["x_m"]), float(row["y_m"])
-                )
-            for row in rows:
-                pred = row.get("predecessor_id")
-                trail = trails.get(str(pred)) if pred is not None else None
-                row["lateral_deviation_m"] = (
-                    trail.deviation(float(row["x_m"]), float(row["y_m"])) if trail else None
-                )
-        stats.add_step(time_s, rows)
+            xs, ys = columns["x_m"].astype(float), columns["y_m"].astype(float)
+            for vid, x, y in zip(columns["vehicle_id"], xs, ys, strict=True):
+                trails.setdefault(str(vid), PathTrail(0.0)).append(float(x), float(y))
+            deviation = []
+            for pred, x, y in zip(columns.get("predecessor_id", [None] * len(xs)), xs, ys,
+                                  strict=True):  # fmt: skip
+                trail = trails.get(str(pred)) if given(pred) else None
+                deviation.append(trail.deviation(float(x), float(y)) if trail else None)
+            columns["lateral_deviation_m"] = np.array(deviation, dtype=np.float64)
+        stats.add_step(time_s, columns)
     if events is not None:
         stats.add_events(read_events(events))
     return stats

@@ -1,10 +1,11 @@
 """Per-vehicle and per-platoon summaries, accumulated step by step in bounded memory.
 
-`RunStats.add_step` takes one step's trajectory rows (dicts keyed by the columns of
+`RunStats.add_step` takes one step's trajectory rows as columns (keyed by the columns of
 `platoon_sumo.recorder.TRAJECTORY_COLUMNS`); the recorder feeds it online, and
 `summarise_trajectories` feeds it a table, so both give the same numbers. Every
-quantity is a running sum, count, minimum or maximum: memory grows with the number of
-platoon vehicles, never with the run's length. Formulas: docs/metrics.md.
+quantity is a running sum, count, minimum or maximum, kept in one per-vehicle state
+table: memory grows with the number of platoon vehicles, never with the run's length.
+Formulas: docs/metrics.md.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,171 +22,62 @@ import pandas as pd
 from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import l2_gain
 
-Row = Mapping[str, Any]
+Columns = Mapping[str, Sequence[Any] | np.ndarray]
+"""One step's trajectory rows as columns: name -> one value per vehicle (None, NaN or ""
+for a missing value)."""
+
+#: The running series of each vehicle, and the per-vehicle state columns.
+SERIES = ("spacing_error", "gap", "ttc", "headway", "accel", "jerk", "lateral",
+          "gap_measurement_error")  # fmt: skip
+_N, _SUM_SQ, _MAX_ABS, _MIN = range(4)
+"""Per series: count, sum of squares, largest magnitude, smallest value."""
+_PAIR = len(SERIES) * 4
+_PAIR_FIELDS = ("n", "accel_sq", "pred_accel_sq", "speed", "speed_sq", "pred_speed",
+                "pred_speed_sq")  # fmt: skip
+(_ROWS, _STEPS, _FIRST_T, _LAST_T, _PREVIOUS_GAP, _SEEN, _VIEW, _IN_VIEW, _HAD_SCAN,
+ _HAS_PRED) = range(_PAIR + len(_PAIR_FIELDS), _PAIR + len(_PAIR_FIELDS) + 10)  # fmt: skip
+_WIDTH = _HAS_PRED + 1
+_INITIAL = np.zeros(_WIDTH)
+_INITIAL[[4 * k + _MIN for k in range(len(SERIES))]] = math.inf
+_INITIAL[[_FIRST_T, _LAST_T, _PREVIOUS_GAP]] = math.nan
 
 
-def _num(row: Row, key: str) -> float | None:
-    """A numeric cell, None when missing, empty or NaN."""
-    value = row.get(key)
-    if type(value) is float:  # the recorder's rows: no conversion needed
-        return None if value != value else value
-    if value is None or value == "":
-        return None
-    value = float(value)
-    return None if math.isnan(value) else value
+def _series(name: str) -> int:
+    return 4 * SERIES.index(name)
 
 
-def _text(row: Row, key: str) -> str | None:
-    value = row.get(key)
-    if value is None or value == "" or (isinstance(value, float) and math.isnan(value)):
-        return None
-    return str(value)
+def _floats(columns: Columns, key: str, n: int) -> np.ndarray:
+    """A numeric column as float64, NaN where missing (None, "" or absent)."""
+    values = columns.get(key)
+    if values is None:
+        return np.full(n, math.nan)
+    try:
+        return np.asarray(values, dtype=np.float64).reshape(n)
+    except (TypeError, ValueError):  # text cells ("" from a CSV read as text)
+        return pd.to_numeric(pd.Series(list(values), dtype=object), errors="coerce").to_numpy(
+            dtype=np.float64
+        )
 
 
-@dataclass
-class Running:
-    """Count, sum of squares, largest magnitude and smallest value of a series."""
-
-    n: int = 0
-    sum_sq: float = 0.0
-    max_abs: float = 0.0
-    min: float = math.inf
-
-    def add(self, x: float | None) -> None:
-        if x is None:
-            return
-        self.n += 1
-        self.sum_sq += x * x
-        magnitude = -x if x < 0.0 else x
-        if magnitude > self.max_abs:
-            self.max_abs = magnitude
-        if x < self.min:
-            self.min = x
-
-    def rms(self) -> float | None:
-        return math.sqrt(self.sum_sq / self.n) if self.n else None
-
-    def peak(self) -> float | None:
-        return self.max_abs if self.n else None
-
-    def smallest(self) -> float | None:
-        return self.min if self.n else None
-
-
-@dataclass
-class PairEnergy:
-    """Sums over the steps a follower and its predecessor are both in the window."""
-
-    n: int = 0
-    accel_sq: float = 0.0
-    pred_accel_sq: float = 0.0
-    speed: float = 0.0
-    speed_sq: float = 0.0
-    pred_speed: float = 0.0
-    pred_speed_sq: float = 0.0
-
-    def add(self, accel: float, pred_accel: float, speed: float, pred_speed: float) -> None:
-        self.n += 1
-        self.accel_sq += accel * accel
-        self.pred_accel_sq += pred_accel * pred_accel
-        self.speed += speed
-        self.speed_sq += speed * speed
-        self.pred_speed += pred_speed
-        self.pred_speed_sq += pred_speed * pred_speed
-
-    def accel_gain(self) -> float | None:
-        return l2_gain(self.accel_sq, self.pred_accel_sq) if self.n else None
-
-    def speed_gain(self) -> float | None:
-        """l2 gain of the speed deviations from their mean over the common window."""
-        if not self.n:
-            return None
-        own = max(self.speed_sq - self.speed**2 / self.n, 0.0)
-        pred = max(self.pred_speed_sq - self.pred_speed**2 / self.n, 0.0)
-        return l2_gain(own, pred)
+def given(value: Any) -> bool:
+    """A cell that holds a value (not None, "" or NaN)."""
+    return not (value is None or value == "" or (isinstance(value, float) and value != value))
 
 
 @dataclass
 class VehicleStats:
+    """A platoon vehicle's identity and event counts; its running series live in
+    `RunStats`' state table (row `row`)."""
+
     vehicle_id: str
     platoon_id: str
     member_index: int
     role: str
-    rows: int = 0
-    steps: int = 0
-    first_time_s: float = math.nan
-    last_time_s: float = math.nan
-    spacing_error: Running = field(default_factory=Running)
-    gap: Running = field(default_factory=Running)
-    ttc: Running = field(default_factory=Running)
-    headway: Running = field(default_factory=Running)
-    accel: Running = field(default_factory=Running)
-    jerk: Running = field(default_factory=Running)
-    lateral: Running = field(default_factory=Running)
-    gap_measurement_error: Running = field(default_factory=Running)
-    pair: PairEnergy = field(default_factory=PairEnergy)
-    seen: bool = False
-    view_steps: int = 0
-    in_view_steps: int = 0
-    had_scan: bool = False
-    has_predecessor: bool = False
+    row: int
     emergency_brakings: int = 0
     collisions: int = 0
     red_light_violations: int = 0
     cut_ins: int = 0
-    _previous_gap: float | None = None
-
-    def summary(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "vehicle_id": self.vehicle_id,
-            "platoon_id": self.platoon_id,
-            "member_index": self.member_index,
-            "role": self.role,
-            "steps": self.steps,
-            "first_time_s": self.first_time_s,
-            "last_time_s": self.last_time_s,
-            "rms_spacing_error_m": self.spacing_error.rms(),
-            "max_abs_spacing_error_m": self.spacing_error.peak(),
-            "min_gap_m": self.gap.smallest(),
-            "min_ttc_s": self.ttc.smallest(),
-            "min_time_headway_s": self.headway.smallest(),
-            "rms_accel_mps2": self.accel.rms(),
-            "max_abs_accel_mps2": self.accel.peak(),
-            "rms_jerk_mps3": self.jerk.rms(),
-            "max_abs_jerk_mps3": self.jerk.peak(),
-            "rms_lateral_deviation_m": self.lateral.rms(),
-            "max_lateral_deviation_m": self.lateral.peak(),
-            "rms_gap_measurement_error_m": self.gap_measurement_error.rms(),
-            "in_view_share": self.in_view_share(),
-            "lost_steps": self.view_steps - self.in_view_steps if self.seen else None,
-            "accel_l2_gain": self.pair.accel_gain(),
-            "speed_l2_gain": self.pair.speed_gain(),
-            "cut_ins": self.cut_ins,
-            "emergency_brakings": self.emergency_brakings,
-            "collisions": self.collisions,
-            "red_light_violations": self.red_light_violations,
-        }
-        return out
-
-    def in_view_share(self) -> float | None:
-        if self.seen:
-            return self.in_view_steps / self.view_steps
-        return 0.0 if self.had_scan else None
-
-    def follower_summary(self) -> dict[str, Any]:
-        """The `followers` entry of summary.json (kept from earlier versions)."""
-        s = self.summary()
-        out: dict[str, Any] = {
-            "steps": self.rows,
-            "in_view_share": s["in_view_share"],
-            "lost_scans": s["lost_steps"] if self.seen else (self.view_steps or 0),
-            "min_gap_m": s["min_gap_m"],
-            "rms_spacing_error_m": s["rms_spacing_error_m"],
-        }
-        if self.lateral.n:
-            out["max_lateral_deviation_m"] = s["max_lateral_deviation_m"]
-            out["rms_lateral_deviation_m"] = s["rms_lateral_deviation_m"]
-        return out
 
 
 @dataclass
@@ -199,11 +91,13 @@ class PlatoonStats:
 
 
 class RunStats:
-    """Feed it every step's rows; read `vehicle_summaries()` / `platoon_summaries()`.
+    """Feed it every step's columns; read `vehicle_summaries()` / `platoon_summaries()`.
 
     `planned`: members per platoon (from the scenario); platoons not in it count the
     members seen. Quality metrics use the rows from `start_s` on; event counts
-    (collisions, emergency brakings, red lights, cut-ins) the whole run.
+    (collisions, emergency brakings, red lights, cut-ins) the whole run. A step is
+    folded in with array operations over its vehicles (each vehicle once a step), so
+    the cost per vehicle is a few array elements, not a Python loop.
     """
 
     def __init__(self, planned: Mapping[str, int] | None = None, start_s: float = 0.0):
@@ -211,77 +105,133 @@ class RunStats:
         self.start_s = start_s
         self.vehicles: dict[str, VehicleStats] = {}
         self.platoons: dict[str, PlatoonStats] = {}
+        self._state = np.tile(_INITIAL, (16, 1))
 
     # ------------------------------------------------------------------ feeding
 
-    def _vehicle(self, row: Row) -> VehicleStats:
-        vid = str(row["vehicle_id"])
-        stats = self.vehicles.get(vid)
-        if stats is None:
-            stats = self.vehicles[vid] = VehicleStats(
-                vid, str(row["platoon_id"]), int(row.get("member_index") or 0),
-                str(row.get("role") or ""),
-            )  # fmt: skip
-        return stats
+    def _rows(self, ids: list[str], columns: Columns) -> np.ndarray:
+        """State rows of the step's vehicles (new vehicles get one)."""
+        vehicles = self.vehicles
+        out = np.empty(len(ids), dtype=np.intp)
+        for k, vid in enumerate(ids):
+            v = vehicles.get(vid)
+            if v is None:
+                v = vehicles[vid] = self._new_vehicle(vid, k, columns)
+            out[k] = v.row
+        return out
 
-    def add_step(self, time_s: float, rows: Iterable[Row]) -> None:
-        rows = list(rows)
-        by_id = {str(r["vehicle_id"]): r for r in rows}
-        in_window = time_s >= self.start_s - 1e-9
-        for row in rows:
-            v = self._vehicle(row)
-            v.rows += 1
-            if math.isnan(v.first_time_s):
-                v.first_time_s = time_s
-            v.last_time_s = time_s
-            pred_id = _text(row, "predecessor_id")
-            gap = _num(row, "gap_to_predecessor_m")
-            previous_gap, v._previous_gap = v._previous_gap, gap
-            if not in_window:
-                continue
-            v.steps += 1
-            accel = _num(row, "accel_mps2")
-            v.accel.add(accel)
-            v.jerk.add(_num(row, "jerk_mps3"))
-            if pred_id is None:
-                continue
-            v.has_predecessor = True
-            desired = _num(row, "desired_gap_m")
-            error = _num(row, "spacing_error_m")
-            if error is None and gap is not None and desired is not None:
-                error = gap - desired
-            v.spacing_error.add(error)
-            v.gap.add(gap)
-            v.ttc.add(_num(row, "ttc_s"))
-            v.headway.add(_num(row, "time_headway_s"))
-            v.lateral.add(_num(row, "lateral_deviation_m"))
-            measured = _num(row, "measured_gap_m")
-            if measured is not None and previous_gap is not None:
-                v.gap_measurement_error.add(measured - previous_gap)
-            in_view = _in_view(row)
-            if in_view is not None:
-                v.had_scan = True
-                v.seen = v.seen or in_view
-                if v.seen:
-                    v.view_steps += 1
-                    v.in_view_steps += int(in_view)
-            pred = by_id.get(pred_id)
-            speed = _num(row, "speed_mps")
-            if pred is not None and accel is not None and speed is not None:
-                pa, ps = _num(pred, "accel_mps2"), _num(pred, "speed_mps")
-                if pa is not None and ps is not None:
-                    v.pair.add(accel, pa, speed, ps)
-        if in_window:
-            self._platoon_step(rows)
+    def _new_vehicle(self, vid: str, k: int, columns: Columns) -> VehicleStats:
+        row = len(self.vehicles)
+        if row == len(self._state):
+            self._state = np.vstack([self._state, np.tile(_INITIAL, (row, 1))])
+        index: Any = columns["member_index"][k] if "member_index" in columns else None
+        role: Any = columns["role"][k] if "role" in columns else None
+        return VehicleStats(
+            vid, str(columns["platoon_id"][k]),
+            int(index) if given(index) else 0, str(role) if given(role) else "", row,
+        )  # fmt: skip
 
-    def _platoon_step(self, rows: list[Row]) -> None:
-        groups: dict[str, list[Row]] = {}
-        for row in rows:
-            groups.setdefault(str(row["platoon_id"]), []).append(row)
+    def _add(self, name: str, rows: np.ndarray, x: np.ndarray) -> None:
+        """One value per vehicle into the series `name`; NaN values are skipped."""
+        ok = ~np.isnan(x)
+        if not ok.all():
+            rows, x = rows[ok], x[ok]
+        c = _series(name)
+        state = self._state
+        state[rows, c + _N] += 1
+        state[rows, c + _SUM_SQ] += x * x
+        magnitude = np.where(x < 0.0, -x, x)
+        largest = state[rows, c + _MAX_ABS]
+        state[rows, c + _MAX_ABS] = np.where(magnitude > largest, magnitude, largest)
+        smallest = state[rows, c + _MIN]
+        state[rows, c + _MIN] = np.where(x < smallest, x, smallest)
+
+    def add_step(self, time_s: float, columns: Columns) -> None:
+        """Fold in one step: every column one value per vehicle (each vehicle once)."""
+        ids = [str(v) for v in columns["vehicle_id"]]
+        n = len(ids)
+        if n == 0:
+            return
+        if len(set(ids)) != n:
+            raise ValueError(f"a vehicle has more than one row at t={time_s}")
+        rows = self._rows(ids, columns)
+        state = self._state
+        state[rows, _ROWS] += 1
+        first = state[rows, _FIRST_T]
+        state[rows, _FIRST_T] = np.where(np.isnan(first), time_s, first)
+        state[rows, _LAST_T] = time_s
+        gap = _floats(columns, "gap_to_predecessor_m", n)
+        previous_gap = state[rows, _PREVIOUS_GAP]
+        state[rows, _PREVIOUS_GAP] = gap
+        if time_s < self.start_s - 1e-9:
+            return
+        state[rows, _STEPS] += 1
+        accel = _floats(columns, "accel_mps2", n)
+        self._add("accel", rows, accel)
+        self._add("jerk", rows, _floats(columns, "jerk_mps3", n))
+        pred_ids = columns.get("predecessor_id", [None] * n)
+        has_pred = np.fromiter((given(p) for p in pred_ids), dtype=bool, count=n)
+        in_view = _in_view(columns, n)
+        if has_pred.any():
+            self._follower_step(columns, ids, rows, has_pred, gap, previous_gap, accel, in_view)
+        self._platoon_step(columns, n, has_pred, in_view)
+
+    def _follower_step(
+        self, columns: Columns, ids: list[str], rows: np.ndarray, has_pred: np.ndarray,
+        gap: np.ndarray, previous_gap: np.ndarray, accel: np.ndarray, in_view: np.ndarray,
+    ) -> None:  # fmt: skip
+        """The series of the vehicles with a predecessor."""
+        n = len(ids)
+        state = self._state
+        r = rows[has_pred]
+        state[r, _HAS_PRED] = 1.0
+        desired = _floats(columns, "desired_gap_m", n)
+        error = _floats(columns, "spacing_error_m", n)
+        error = np.where(np.isnan(error), gap - desired, error)  # NaN if either is missing
+        self._add("spacing_error", r, error[has_pred])
+        self._add("gap", r, gap[has_pred])
+        for name, key in (("ttc", "ttc_s"), ("headway", "time_headway_s"),
+                          ("lateral", "lateral_deviation_m")):  # fmt: skip
+            self._add(name, r, _floats(columns, key, n)[has_pred])
+        measured = _floats(columns, "measured_gap_m", n)
+        self._add("gap_measurement_error", r, (measured - previous_gap)[has_pred])
+        view = in_view[has_pred]
+        known = ~np.isnan(view)
+        rk, saw = r[known], view[known] > 0.0
+        state[rk, _HAD_SCAN] = 1.0
+        seen = (state[rk, _SEEN] > 0.0) | saw
+        state[rk, _SEEN] = seen
+        state[rk[seen], _VIEW] += 1.0
+        state[rk[seen], _IN_VIEW] += saw[seen]
+        # the follower-predecessor pair, both in this step
+        at = {vid: k for k, vid in enumerate(ids)}
+        pred_ids = columns["predecessor_id"]
+        pred = np.fromiter(
+            (at.get(str(p), -1) if h else -1 for p, h in zip(pred_ids, has_pred, strict=True)),
+            dtype=np.intp, count=n,
+        )  # fmt: skip
+        speed = _floats(columns, "speed_mps", n)
+        both = pred >= 0
+        k = np.flatnonzero(both)
+        pa, ps = accel[pred[k]], speed[pred[k]]
+        ok = ~(np.isnan(accel[k]) | np.isnan(speed[k]) | np.isnan(pa) | np.isnan(ps))
+        k, pa, ps = k[ok], pa[ok], ps[ok]
+        a, v, rows_k = accel[k], speed[k], rows[k]
+        for offset, value in enumerate((1.0, a * a, pa * pa, v, v * v, ps, ps * ps)):
+            state[rows_k, _PAIR + offset] += value
+
+    def _platoon_step(
+        self, columns: Columns, n: int, has_pred: np.ndarray, in_view: np.ndarray
+    ) -> None:
+        groups: dict[str, list[int]] = {}
+        for k, pid in enumerate(columns["platoon_id"]):
+            groups.setdefault(str(pid), []).append(k)
+        index = _floats(columns, "member_index", n)
+        intact_row = ~has_pred | (in_view > 0.0)  # NaN (no scan) compares False
         for pid, members in groups.items():
             planned = self.planned.get(pid)
             if planned is None:
-                planned = max(int(r.get("member_index") or 0) for r in members) + 1
+                planned = int(np.nan_to_num(index[members]).max()) + 1
             p = self.platoons.get(pid)
             if p is None:
                 p = self.platoons[pid] = PlatoonStats(pid, planned)
@@ -290,9 +240,7 @@ class RunStats:
                 p._intact = False
                 continue
             p.complete_steps += 1
-            intact = all(
-                _in_view(r) is True for r in members if _text(r, "predecessor_id") is not None
-            )
+            intact = bool(intact_row[members].all())
             p.intact_steps += int(intact)
             p._intact = intact
 
@@ -327,13 +275,75 @@ class RunStats:
 
     def vehicle_summaries(self) -> list[dict[str, Any]]:
         ordered = sorted(self.vehicles.values(), key=lambda v: (v.platoon_id, v.member_index))
-        return [v.summary() for v in ordered]
+        return [self._summary(v) for v in ordered]
+
+    def _summary(self, v: VehicleStats) -> dict[str, Any]:
+        state = [float(x) for x in self._state[v.row]]
+
+        def rms(name: str) -> float | None:
+            c = _series(name)
+            return math.sqrt(state[c + _SUM_SQ] / state[c + _N]) if state[c + _N] else None
+
+        def peak(name: str) -> float | None:
+            c = _series(name)
+            return state[c + _MAX_ABS] if state[c + _N] else None
+
+        def smallest(name: str) -> float | None:
+            c = _series(name)
+            return state[c + _MIN] if state[c + _N] else None
+
+        seen = bool(state[_SEEN])
+        view, in_view = int(state[_VIEW]), int(state[_IN_VIEW])
+        share = in_view / view if seen else (0.0 if state[_HAD_SCAN] else None)
+        return {
+            "vehicle_id": v.vehicle_id,
+            "platoon_id": v.platoon_id,
+            "member_index": v.member_index,
+            "role": v.role,
+            "steps": int(state[_STEPS]),
+            "first_time_s": state[_FIRST_T],
+            "last_time_s": state[_LAST_T],
+            "rms_spacing_error_m": rms("spacing_error"),
+            "max_abs_spacing_error_m": peak("spacing_error"),
+            "min_gap_m": smallest("gap"),
+            "min_ttc_s": smallest("ttc"),
+            "min_time_headway_s": smallest("headway"),
+            "rms_accel_mps2": rms("accel"),
+            "max_abs_accel_mps2": peak("accel"),
+            "rms_jerk_mps3": rms("jerk"),
+            "max_abs_jerk_mps3": peak("jerk"),
+            "rms_lateral_deviation_m": rms("lateral"),
+            "max_lateral_deviation_m": peak("lateral"),
+            "rms_gap_measurement_error_m": rms("gap_measurement_error"),
+            "in_view_share": share,
+            "lost_steps": view - in_view if seen else None,
+            **_pair_gains(state[_PAIR : _PAIR + len(_PAIR_FIELDS)]),
+            "cut_ins": v.cut_ins,
+            "emergency_brakings": v.emergency_brakings,
+            "collisions": v.collisions,
+            "red_light_violations": v.red_light_violations,
+        }
 
     def followers(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """{platoon: {vehicle: the `followers` entry of summary.json}} of every vehicle
+        that had a predecessor."""
         out: dict[str, dict[str, dict[str, Any]]] = {}
         for v in sorted(self.vehicles.values(), key=lambda v: (v.platoon_id, v.vehicle_id)):
-            if v.has_predecessor or _was_follower(v):
-                out.setdefault(v.platoon_id, {})[v.vehicle_id] = v.follower_summary()
+            if not self._state[v.row, _HAS_PRED]:
+                continue
+            s = self._summary(v)
+            seen = bool(self._state[v.row, _SEEN])
+            entry: dict[str, Any] = {
+                "steps": int(self._state[v.row, _ROWS]),
+                "in_view_share": s["in_view_share"],
+                "lost_scans": s["lost_steps"] if seen else int(self._state[v.row, _VIEW]),
+                "min_gap_m": s["min_gap_m"],
+                "rms_spacing_error_m": s["rms_spacing_error_m"],
+            }
+            if self._state[v.row, _series("lateral") + _N]:
+                entry["max_lateral_deviation_m"] = s["max_lateral_deviation_m"]
+                entry["rms_lateral_deviation_m"] = s["rms_lateral_deviation_m"]
+            out.setdefault(v.platoon_id, {})[v.vehicle_id] = entry
         return out
 
     def platoon_summaries(self) -> list[dict[str, Any]]:
@@ -346,16 +356,24 @@ class RunStats:
         return result
 
 
-def _was_follower(v: VehicleStats) -> bool:
-    return v.rows > 0 and v.role == "follower" and v.has_predecessor
+def _pair_gains(pair: list[float]) -> dict[str, float | None]:
+    """l2 gains of a follower's acceleration and speed deviations (from their mean over
+    the common window) against its predecessor's."""
+    n, accel_sq, pred_accel_sq, speed, speed_sq, pred_speed, pred_speed_sq = pair
+    if not n:
+        return {"accel_l2_gain": None, "speed_l2_gain": None}
+    own = max(speed_sq - speed**2 / n, 0.0)
+    pred = max(pred_speed_sq - pred_speed**2 / n, 0.0)
+    return {"accel_l2_gain": l2_gain(accel_sq, pred_accel_sq), "speed_l2_gain": l2_gain(own, pred)}
 
 
-def _in_view(row: Row) -> bool | None:
-    flag = _num(row, "predecessor_in_view")
-    if flag is not None:
-        return flag > 0
-    rays = _num(row, "predecessor_rays")
-    return None if rays is None else rays > 0
+def _in_view(columns: Columns, n: int) -> np.ndarray:
+    """1.0 / 0.0 where the predecessor was in view (the flag, else the ray count), NaN
+    where the row does not say."""
+    flag = _floats(columns, "predecessor_in_view", n)
+    rays = _floats(columns, "predecessor_rays", n)
+    said = np.where(np.isnan(flag), rays, flag)
+    return np.where(np.isnan(said), math.nan, (said > 0.0).astype(np.float64))
 
 
 def _max(values: Iterable[float | None]) -> float | None:
@@ -411,9 +429,8 @@ def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str,
     }
 
 
-def table_rows(frame: pd.DataFrame) -> Iterable[tuple[float, list[dict[str, Any]]]]:
-    """(time, rows of that step) of a trajectory table, in time order; NaN -> None."""
+def table_steps(frame: pd.DataFrame) -> Iterable[tuple[float, dict[str, np.ndarray]]]:
+    """(time, columns of that step) of a trajectory table, in time order."""
     frame = frame.sort_values("time_s", kind="stable")
-    clean = frame.astype(object).where(frame.notna(), None)
-    for time_s, group in clean.groupby(frame["time_s"], sort=True):
-        yield float(np.float64(time_s)), group.to_dict("records")
+    for time_s, group in frame.groupby("time_s", sort=True):
+        yield float(np.float64(time_s)), {c: group[c].to_numpy() for c in group.columns}

@@ -122,10 +122,10 @@ def test_offline_summary_reads_the_events_table():
 def test_gap_measurement_error_compares_with_the_previous_true_gap():
     stats = RunStats()
     for k, (gap, measured) in enumerate([(10.0, None), (11.0, 10.5), (12.0, 11.5)]):
-        stats.add_step(k * DT, [
-            dict(vehicle_id="p.1", platoon_id="p", member_index=1, role="follower",
-                 predecessor_id="p.0", gap_to_predecessor_m=gap, measured_gap_m=measured),
-        ])  # fmt: skip
+        stats.add_step(k * DT, dict(
+            vehicle_id=["p.1"], platoon_id=["p"], member_index=[1], role=["follower"],
+            predecessor_id=["p.0"], gap_to_predecessor_m=[gap], measured_gap_m=[measured],
+        ))  # fmt: skip
     # measured at the start of steps 1 and 2 vs the true gaps 10 and 11: errors 0.5, 0.5
     assert stats.vehicle_summaries()[0]["rms_gap_measurement_error_m"] == pytest.approx(0.5)
 
