@@ -3,7 +3,7 @@
 A step is a fixed sequence of stages (`platoon_sumo.loop`) sharing one `StepContext`:
 
   before SUMO's step (on the world read after the previous one):
-    InsertDue -> Sense -> Decide -> Actuate
+    RemovedElsewhere -> InsertDue -> Sense -> Decide -> Actuate
   SUMO's step, then (on the new world):
     SumoReports -> Gridlocks -> Arrivals -> ObserveWorld -> Departures -> ReadBack
     -> RouteProgress -> LaneChangeGaps -> Footprints -> Predecessors -> Cohesion
@@ -33,7 +33,7 @@ from platoon_sumo.loop.context import (
     vehicle_record,
 )
 from platoon_sumo.loop.decision import Decide
-from platoon_sumo.loop.insertion import Arrivals, Departures, InsertDue
+from platoon_sumo.loop.insertion import Arrivals, Departures, InsertDue, RemovedElsewhere
 from platoon_sumo.loop.lane_change import LaneChangeGaps
 from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
 from platoon_sumo.loop.ports import Backend
@@ -52,7 +52,7 @@ class Stage(Protocol):
 
 
 def before_sumo_stages() -> list[Stage]:
-    return [InsertDue(), Sense(), Decide(), Actuate()]
+    return [RemovedElsewhere(), InsertDue(), Sense(), Decide(), Actuate()]
 
 
 def after_sumo_stages() -> list[Stage]:

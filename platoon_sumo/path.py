@@ -192,6 +192,19 @@ class RoutePath:
         return [self.lane_ids[int(i)] for i in self.lane_index]
 
     @cached_property
+    def _junction_points(self) -> NDArray[np.bool_]:
+        """Per point: on a junction's internal lane."""
+        internal = np.array([id_.startswith(":") for id_ in self.lane_ids], dtype=bool)
+        return internal[np.asarray(self.lane_index, dtype=np.intp)]
+
+    def junction_within(self, from_s_m: float, to_s_m: float) -> bool:
+        """Does any of the path from `from_s_m` to `to_s_m` run inside a junction?"""
+        points = self._junction_points
+        i0 = min(max(int(from_s_m // self.spacing_m), 0), len(points))
+        i1 = min(max(int(to_s_m // self.spacing_m) + 2, 0), len(points))
+        return bool(points[i0:i1].any())
+
+    @cached_property
     def _lane_key_of_point(self) -> list[tuple[str, ...] | None]:
         """(edge, lane index as text) of the lane under each point; None in junctions."""
         keys = [None if id_.startswith(":") else tuple(id_.rsplit("_", 1)) for id_ in self.lane_ids]

@@ -38,6 +38,8 @@ class FakeBackend:
         self.departed: list[str] = []
         self.arrived: list[str] = []
         self.removed: list[tuple[str, bool]] = []
+        self.vanished: list[str] = []
+        """Vehicles someone else took out of SUMO since the last step."""
         self.speed_commands: dict[str, float] = {}
         self.lane_requests: dict[str, int] = {}
         self.collisions: list[tuple[str, str, str]] = []
@@ -112,6 +114,12 @@ class FakeBackend:
 
     def arrived_ids(self) -> tuple[str, ...]:
         return tuple(self.arrived)
+
+    def removed_elsewhere(self) -> tuple[str, ...]:
+        gone, self.vanished = tuple(self.vanished), []
+        for vid in gone:
+            self.vehicles.pop(vid, None)
+        return gone
 
     def teleported_ids(self) -> tuple[str, ...]:
         return ()

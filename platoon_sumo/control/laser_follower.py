@@ -44,7 +44,9 @@ Each step:
    while steering along what is left of the trail; ``on_lost="route_following"`` hands
    over to a ``RouteFollowing`` on ``observation.path`` (without ``vehicle_ahead``, its
    speed capped by the laser's clearance along the commanded arc) until a predecessor
-   is confirmed again, then follows again.
+   is confirmed again, then follows again. Never inside a junction: a follower lost
+   with its body in a junction, or whose comfortable stop would end in one, drives out
+   on its route as ``route_following`` does (mode ``leaving_junction``), then stops.
 
 Each command carries its ``Telemetry``: the mode, the measured gap (the straight-line
 gap of 3., from the own front bumper to the tracked rear; None unless following) and the
@@ -140,6 +142,9 @@ class LaserFollowerParams:
     """Pure pursuit on the predecessor's trail, or straight at its current rear."""
     on_lost: Literal["stop", "route_following"] = "stop"
     """What to do without a predecessor: stop comfortably, or follow the own route."""
+    leave_junctions: bool = True
+    """Lost with the body in a junction, or where a comfortable stop would end in one,
+    drive out on the own route before stopping (False: stop wherever lost)."""
     predecessor_width_m: float | None = None
     """Expected rear width of the predecessor [m]; None: the follower's own width."""
     corridor_half_width_m: float | Literal["lane"] | None = "lane"
@@ -346,14 +351,13 @@ class LaserFollower:
         lane_change = 0
         heading: float | None = None
         if self.tracker.confirmed:
-            if p.on_lost == "route_following":
-                self._fallback.advance(obs)  # so it knows where on the route it is
+            self._fallback.advance(obs)  # so it knows where on the route it is
             self.mode = "following"
             speed, yaw_rate, lane_change = self._follow(obs)
         else:
             self._track = self._track_args = None
-            if p.on_lost == "route_following":
-                self.mode = "route_following"
+            if p.on_lost == "route_following" or (p.leave_junctions and self._in_junction(obs)):
+                self.mode = p.on_lost if p.on_lost == "route_following" else "leaving_junction"
                 shadow = self._fallback._step(obs, math.inf)  # blind to SUMO's leader
                 speed = self._guarded(obs, shadow)
                 yaw_rate, lane_change, heading = (
@@ -568,6 +572,15 @@ class LaserFollower:
         return self._law_array
 
     # ------------------------------------------------------------------ lost
+
+    def _in_junction(self, obs: Observation) -> bool:
+        """Is the body in a junction, or would a comfortable stop end in one? A lost
+        follower then drives out on its route before it stops (a car standing inside a
+        junction blocks the crossing traffic, which may not expect it there)."""
+        self._fallback.advance(obs)
+        front_m = self._fallback._s_m + obs.front_offset_m
+        stop_m = front_m + obs.speed_mps**2 / (2.0 * self.params.comfort_decel_mps2)
+        return obs.path.junction_within(front_m - obs.length_m, stop_m)
 
     def _stop(self, obs: Observation) -> tuple[float, float]:
         """(speed, yaw rate): brake comfortably along what is left of the trail."""

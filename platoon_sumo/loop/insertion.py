@@ -63,6 +63,18 @@ def _hand_over(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]
         ctx.waiting[member.vehicle_id] = member
 
 
+class RemovedElsewhere:
+    """Platoon vehicles taken out of SUMO between two steps by someone else (a hook or
+    plug-in calling libsumo) leave the fleet, reported as removed."""
+
+    def __call__(self, ctx: StepContext) -> None:
+        for vid in ctx.backend.removed_elsewhere():
+            ctx.waiting.pop(vid, None)
+            member = ctx.fleet.remove(vid)
+            if member is not None:
+                ctx.emit(EventKind.REMOVED, member, detail="taken out of SUMO outside the loop")
+
+
 class Arrivals:
     """Vehicles SUMO let arrive leave the fleet."""
 

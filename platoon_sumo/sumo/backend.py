@@ -112,6 +112,8 @@ class SumoBackend:
         self._largest_m = 0.0
         self._in_network = 0
         self._departed: tuple[str, ...] = ()
+        self._known_gone: set[str] = set()
+        """This step's arrivals read by the loop and the vehicles it removed itself."""
 
     def start(self) -> None:
         try:
@@ -353,7 +355,21 @@ class SumoBackend:
         arrived = tuple(libsumo.simulation.getArrivedIDList())
         for vid in arrived:
             self._geometry.pop(vid, None)
+        self._known_gone = set(arrived)
         return arrived
+
+    def removed_elsewhere(self) -> tuple[str, ...]:
+        """Vehicles taken out of SUMO since the last step's arrivals were read, by
+        someone else (a hook or plug-in calling libsumo): SUMO lists them with that
+        step's arrivals until the next step."""
+        gone = tuple(
+            vid for vid in libsumo.simulation.getArrivedIDList() if vid not in self._known_gone
+        )
+        for vid in gone:
+            self._geometry.pop(vid, None)
+        self._known_gone.update(gone)
+        self._in_network -= len(gone)
+        return gone
 
     def teleported_ids(self) -> tuple[str, ...]:
         """Vehicles SUMO started to teleport in the last step."""
@@ -419,6 +435,7 @@ class SumoBackend:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
         self._in_network -= on_road  # SUMO does not count our removals as arrivals
         self._geometry.pop(vehicle_id, None)
+        self._known_gone.add(vehicle_id)
 
     def route_contexts(
         self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]

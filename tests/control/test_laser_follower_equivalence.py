@@ -72,7 +72,10 @@ def assert_same_step(
 
 
 def replay(log: FollowerLog, params: LaserFollowerParams) -> dict[str, int]:
-    fast, ref = LaserFollower(params), ReferenceLaserFollower(params)
+    """Step both on the log; the reference stops wherever lost (``leave_junctions``
+    came after it)."""
+    fast = LaserFollower(dataclasses.replace(params, leave_junctions=False))
+    ref = ReferenceLaserFollower(params)
     modes: dict[str, int] = {}
     for k, obs in enumerate(log.observations):
         got, want = fast.step(obs), ref.step(obs)

@@ -17,7 +17,7 @@ from platoon_sumo.events import EventKind
 from platoon_sumo.loop.actuate import Actuate, ReadBack
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepHook
 from platoon_sumo.loop.decision import Decide
-from platoon_sumo.loop.insertion import Departures, InsertDue
+from platoon_sumo.loop.insertion import Departures, InsertDue, RemovedElsewhere
 from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
@@ -130,6 +130,17 @@ def test_members_beyond_the_first_edge_follow_one_by_one_when_the_one_ahead_left
     backend.vehicles["p.2"].x_m = 30.0
     InsertDue()(ctx)
     assert [vid for vid, _ in backend.queued] == ["p.3"] and ctx.queued == {}
+
+
+def test_a_member_taken_out_of_sumo_elsewhere_leaves_the_fleet_as_removed(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario), backend)
+    departed(ctx, backend)
+    backend.vanished = ["p.0", "someone"]  # a hook removed a member and a human
+    ctx.events = []
+    RemovedElsewhere()(ctx)
+    assert ctx.fleet.ids() == ["p.1"]
+    assert [(e.kind, e.vehicle_id) for e in ctx.events] == [(EventKind.REMOVED, "p.0")]
 
 
 def test_departures_build_members_from_sumo_poses_and_emit_departed(write_scenario):
