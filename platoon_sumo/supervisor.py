@@ -28,8 +28,8 @@ class SupervisorConfig:
     stop_margin_m: float = 0.5
     """Front bumper stops this far before the stop line [m]."""
     yield_at_junctions: bool = True
-    """On a minor approach, stop before the junction while SUMO sees it closed or contested
-    (SUMO's own gap acceptance for this vehicle)."""
+    """Planar actuation: on a minor approach, stop before the junction while SUMO sees it
+    closed or contested. (Lane actuation leaves it to SUMO's junction model.)"""
     wait_for_lane_change_gap: bool = True
     """Before a lane change of the route, wait (slow down, or stop where it begins) until
     the target lane has a gap; during the move, pause the sideways motion while a vehicle
@@ -51,8 +51,15 @@ SIGNAL, YIELD, MERGE, EMERGENCY = "signal", "yield", "merge", "emergency"
 SUMO_SAFETY = "sumo"
 
 
-def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> tuple[Command, str]:
+def supervise(
+    config: SupervisorConfig, obs: Observation, command: Command, sumo_drives: bool = False
+) -> tuple[Command, str]:
     """The command to execute and what (if anything) the supervisor enforced.
+
+    `sumo_drives` (lane actuation): SUMO's own junction model gives way underneath, with
+    this vehicle's real approach (arrival time and speed), so the supervisor does not
+    hold the vehicle at minor links on top of it (it would wait out every permissive
+    green while any foe approaches).
 
     Lights, minor links and lane changes without a gap are all stop points ahead, met
     with the same braking rule (`signal_speed_limit`); the last resort is a Krauss safe
@@ -62,7 +69,7 @@ def supervise(config: SupervisorConfig, obs: Observation, command: Command) -> t
     if config.signals:
         stops.append((obs.signal, SIGNAL))
     link = obs.link_ahead
-    if config.yield_at_junctions and link is not None and link.must_yield:
+    if config.yield_at_junctions and not sumo_drives and link is not None and link.must_yield:
         # held like a red light at the end of the lane until SUMO opens the link
         stops.append((SignalAhead("junction", -1, "r", link.distance_m), YIELD))
     change = obs.lane_change

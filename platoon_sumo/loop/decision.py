@@ -51,7 +51,9 @@ class Decide:
         commands = step_batch([m.controller for m in members], observations)
         for m, obs, command in zip(members, observations, commands, strict=True):
             m.command = command
-            m.executed, enforced = supervise(m.platoon.config.supervisor, obs, command)
+            m.executed, enforced = supervise(
+                m.platoon.config.supervisor, obs, command, m.actuator.sumo_drives
+            )
             if enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
                 ctx.emit(EventKind.EMERGENCY_BRAKING, m)
             m.supervisor_state = enforced

@@ -10,23 +10,17 @@ import libsumo
 import pandas as pd
 import pytest
 
-from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
+from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
 
 
-class RemoveLeaderInJunction:
+class RemoveLeaderInJunction(StepHook):
     """Takes the leader out of SUMO (libsumo, as any hook may) once its follower is on
     a junction's internal lane."""
 
     def __init__(self) -> None:
         self.at_s: float | None = None
-
-    def on_start(self, run: RunContext) -> None:
-        pass
-
-    def on_end(self, outcome: RunOutcome) -> None:
-        pass
 
     def on_step(self, record: StepRecord) -> None:
         world = record.world
@@ -46,7 +40,7 @@ def test_follower_lost_inside_a_junction_drives_out_before_stopping(
         "network": {"net_file": str(URBAN_GRID_NET)},
         "platoons": [{
             "id": "p", "members": 2, "spacing_m": 8.0, "depart_s": 1.0,
-            "route": {"edges": ["left1A1", "A1B1", "B1B2", "B2top1"]},  # left at A1
+            "route": {"edges": ["left1A1", "A1B1", "B1B2", "B2top1"]},
             "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
                          "params": {"on_lost": "stop", "leave_junctions": leave_junctions}},
         }],
