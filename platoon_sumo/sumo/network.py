@@ -43,6 +43,14 @@ class _Link:
     turnaround: bool = False
 
 
+#: Parts of the ids netconvert gives edges it invents when guessing ramps.
+INVENTED_EDGE_MARKS = ("-AddedOnRampEdge", "-AddedOffRampEdge")
+#: Prefix of the ids of junctions netconvert joined into one.
+JOINED_NODE_PREFIX = "cluster_"
+#: A route crossing a joined junction on longer internal lanes than this is reported [m].
+LONG_JOINED_CROSSING_M = 30.0
+
+
 class Network:
     """A read-only view of a `.net.xml` file."""
 
@@ -106,6 +114,39 @@ class Network:
 
     def tls_ids(self) -> list[str]:
         return sorted(t.getID() for t in self._net.getTrafficLights())
+
+    def invented_on_route(self, edges: Sequence[str]) -> list[str]:
+        """What netconvert made up on this route, one message each: ramps it guessed
+        (`--ramps.guess`: their lanes and merges are invented) and junctions it joined
+        (`--junctions.join`) that the route crosses on internal lanes longer than
+        `LONG_JOINED_CROSSING_M` (a car may have to wait inside such a crossing)."""
+        found = []
+        for a, b in itertools.pairwise(edges):
+            if any(mark in b for mark in INVENTED_EDGE_MARKS):
+                found.append(f"edge '{b}' is a ramp netconvert guessed (--ramps.guess)")
+            node = self._normal_edges[a].getToNode().getID()
+            if node.startswith(JOINED_NODE_PREFIX):
+                crossing = self._crossing_length_m(a, b)
+                if crossing > LONG_JOINED_CROSSING_M:
+                    found.append(
+                        f"junction '{node}' between '{a}' and '{b}' was joined by netconvert "
+                        f"(--junctions.join); the route crosses it on {crossing:.0f} m of "
+                        "internal lanes"
+                    )
+        return found
+
+    def _crossing_length_m(self, a: str, b: str) -> float:
+        """Length of the internal lanes from edge `a` into edge `b` (the longest link)."""
+        longest = 0.0
+        for conn in self._normal_edges[a].getOutgoing().get(self._normal_edges[b], []):
+            length, via = 0.0, conn.getViaLaneID()
+            while via:
+                lane = self._net.getLane(via)
+                length += lane.getLength()
+                nxt = [c.getViaLaneID() for c in lane.getOutgoing() if c.getViaLaneID()]
+                via = nxt[0] if nxt else ""
+            longest = max(longest, length)
+        return longest
 
     def check_edges(self, edges: Sequence[str], vclass: str = "passenger") -> None:
         """Raise RouteError if an edge is unknown, two consecutive edges do not connect for
