@@ -97,17 +97,17 @@ def _network_warnings(plan: RunPlan) -> None:
         print(f"warning: {message}", file=sys.stderr)
     if len(found) > SHOWN_WARNINGS:
         print(f"warning: ... and {len(found) - SHOWN_WARNINGS} more long phases", file=sys.stderr)
-    seen: set[tuple[str, ...]] = set()
+    invented: dict[str, list[str]] = {}  # message -> platoons whose route meets it
     for platoon in plan.platoons:
-        if platoon.edges in seen:
-            continue
-        seen.add(platoon.edges)
         for message in plan.network.invented_on_route(platoon.edges):
-            print(
-                f"warning: {plan.source.path}: platoon '{platoon.config.id}' route: {message}; "
-                "its geometry may not match the road (check it in netedit, or route around it)",
-                file=sys.stderr,
-            )
+            invented.setdefault(message, []).append(platoon.config.id)
+    for message, platoons in invented.items():
+        names = ", ".join(f"'{p}'" for p in platoons[:3]) + (" ..." if len(platoons) > 3 else "")
+        print(
+            f"warning: {plan.source.path}: route of platoon {names}: {message}; its geometry "
+            "may not match the road (check it in netedit, or route around it)",
+            file=sys.stderr,
+        )
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

@@ -55,8 +55,10 @@ def test_a_route_over_a_guessed_ramp_is_named(tmp_path, capfd):
     assert main(["validate", str(path)]) == 0
     out, err = capfd.readouterr()
     assert "OK" in out
-    (line,) = err.splitlines()  # once per route, not per platoon
-    assert line.startswith(f"warning: {path}: platoon 'merge' route: edge 'BC-AddedOnRampEdge'")
+    (line,) = err.splitlines()  # once, naming every platoon that meets it
+    assert line.startswith(
+        f"warning: {path}: route of platoon 'merge', 'again': edge 'BC-AddedOnRampEdge'"
+    )
     assert "--ramps.guess" in line
 
 

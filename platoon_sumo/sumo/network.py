@@ -128,8 +128,9 @@ class Network:
             if node.startswith(JOINED_NODE_PREFIX):
                 crossing = self._crossing_length_m(a, b)
                 if crossing > LONG_JOINED_CROSSING_M:
+                    name = node if len(node) <= 48 else node[:44] + "..."  # clusters of many
                     found.append(
-                        f"junction '{node}' between '{a}' and '{b}' was joined by netconvert "
+                        f"junction '{name}' between '{a}' and '{b}' was joined by netconvert "
                         f"(--junctions.join); the route crosses it on {crossing:.0f} m of "
                         "internal lanes"
                     )
