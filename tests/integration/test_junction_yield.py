@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -68,3 +69,35 @@ def test_platoon_vehicle_yields_to_priority_traffic(priority_crossing, write_sce
     # and no SUMO driver had to brake hard because of the platoon vehicle
     safety = ET.parse(out / "sumo_statistics.xml").getroot().find("safety")
     assert safety is not None and safety.get("emergencyBraking") == "0"
+
+
+def test_two_platoons_meeting_at_a_junction_pass_without_contact(
+    priority_crossing, write_scenario, tmp_path
+):
+    """Two lane-actuated platoons reach the unsignalised crossing together, one on the
+    main road, one on the minor road: the minor one gives way, nobody touches."""
+    follower = {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                "params": {"on_lost": "route_following"}}  # fmt: skip
+    platoon = {"members": 3, "spacing_m": 8.0, "actuation": "lane", "follower": follower}
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 90.0, "seed": 1},
+        "network": {"net_file": str(priority_crossing)},
+        "platoons": [
+            {**platoon, "id": "main", "route": {"edges": ["WC", "CE"]}, "depart_s": 2.0},
+            {**platoon, "id": "minor", "route": {"edges": ["SC", "CN"]}, "depart_s": 2.0},
+        ],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
+    assert summary["platoon_vehicles"]["arrived"] == 6
+    traj = pd.read_csv(out / "trajectories.csv")
+    entered = traj[traj["lane_id"].str.startswith(":C")].groupby("platoon_id")["time_s"]
+    # they met: the minor platoon was still waiting when the main one entered the crossing
+    minor = traj[traj["platoon_id"] == "minor"]
+    first_main = entered.min()["main"]
+    at_first_main = minor[(minor["time_s"] - first_main).abs() < 0.05]
+    assert (at_first_main["lane_id"] == "SC_0").all() and len(at_first_main) == 3
+    # and gave way: its first car stood at the end of the minor road
+    leader = minor[minor["vehicle_id"] == "minor.0"]
+    assert ((leader["speed_mps"] < 0.1) & (leader["lane_id"] == "SC_0")).sum() > 5
