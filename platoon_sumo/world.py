@@ -30,6 +30,10 @@ class WorldSnapshot:
         return len(self.ids)
 
 
+#: Signal states at which a driver stops if it can: red, red-yellow, yellow.
+STOP_STATES = frozenset("ruy")
+
+
 @dataclass(frozen=True)
 class SignalAhead:
     """The next traffic light on a vehicle's route: link state and distance to its stop line."""
@@ -42,7 +46,7 @@ class SignalAhead:
     @property
     def is_stop(self) -> bool:
         """Red, red-yellow or yellow: a driver stops if it can."""
-        return self.state in ("r", "u", "y")
+        return self.state in STOP_STATES
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
 from platoon_sumo.kernels.neighbours import within_radius
-from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
+from platoon_sumo.world import STOP_STATES, LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 #: SUMO's laneChangeMode bits: strategic changes (1) respecting others' speed and braking
 #: gaps (512) with sublane adjustments (1024); no cooperative, speed-gain or keep-right
@@ -232,7 +232,8 @@ class SumoBackend:
     def standing_vehicles(self, min_wait_s: float) -> list[tuple[str, str, float, float, float]]:
         """Vehicles standing still (SUMO's waiting time: below 0.1 m/s since) for at
         least `min_wait_s`, neither stopped by their schedule (a stop, parking) nor
-        within `RED_QUEUE_M` of a red light ahead: (id, lane, x, y, seconds)."""
+        within `RED_QUEUE_M` of a light ahead showing red, red-yellow or yellow (a queue
+        at a light): (id, lane, x, y, seconds)."""
         veh = libsumo.vehicle
         found = []
         for vid in veh.getIDList():
@@ -240,7 +241,7 @@ class SumoBackend:
             if waited < min_wait_s or veh.isStopped(vid):
                 continue
             signals = veh.getNextTLS(vid)
-            if signals and signals[0][2] <= RED_QUEUE_M and signals[0][3] in ("r", "u"):
+            if signals and signals[0][2] <= RED_QUEUE_M and signals[0][3] in STOP_STATES:
                 continue
             x, y = veh.getPosition(vid)
             found.append((vid, veh.getLaneID(vid), float(x), float(y), float(waited)))
