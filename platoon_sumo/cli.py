@@ -124,7 +124,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         why = (
             "it departs after the simulation's end"
             if depart[pid] > plan.scenario.simulation.end_s - plan.scenario.simulation.step_s
-            else "its first lane never had room for all members (try another depart_s, "
+            else "its first lane never had room for its first members (try another depart_s, "
             "depart_pos_m or first edge)"
         )
         print(f"warning: platoon '{pid}' was never inserted: {why}", file=sys.stderr)
