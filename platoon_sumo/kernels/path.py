@@ -9,6 +9,35 @@ from numba import njit
 
 
 @njit(cache=True)
+def window_segments(
+    n_seg: int, spacing: float, use_hint: bool, s_hint: float, window: float
+) -> tuple[int, int, int]:
+    """(first, end, centre) segments searched: all without a hint; else those within
+    ``window`` (plus one segment) of the segment at ``s_hint`` (the centre)."""
+    if not use_hint:
+        return 0, n_seg, 0
+    w = int(window / spacing) + 1
+    centre = int(min(max(s_hint // spacing, 0.0), n_seg - 1.0))
+    return max(0, centre - w), min(n_seg, centre + w + 1), centre
+
+
+@njit(cache=True)
+def segment_d2(xy: np.ndarray, k: int, x: float, y: float) -> tuple[float, float, float]:
+    """(squared distance, t of the nearest point, squared length) of segment k of the
+    polyline ``xy`` to (x, y)."""
+    ax = xy[k, 0]
+    ay = xy[k, 1]
+    dx = xy[k + 1, 0] - ax
+    dy = xy[k + 1, 1] - ay
+    len2 = dx * dx + dy * dy
+    t = ((x - ax) * dx + (y - ay) * dy) / max(len2, 1e-18)
+    t = min(max(t, 0.0), 1.0)
+    cx = ax + dx * t - x
+    cy = ay + dy * t - y
+    return cx * cx + cy * cy, t, len2
+
+
+@njit(cache=True)
 def project_kernel(
     xy: np.ndarray,
     widths: np.ndarray,
@@ -25,29 +54,13 @@ def project_kernel(
     offset, left +, and ``widths`` at the vertex at or before it). With ``use_hint``, only
     the segments within ``window`` (plus one segment) of the one at ``s_hint`` are
     searched. The first of equally near segments wins."""
-    n_seg = xy.shape[0] - 1
-    lo = 0
-    hi = n_seg
-    if use_hint:
-        w = int(window / spacing) + 1
-        centre = int(min(max(s_hint // spacing, 0.0), n_seg - 1.0))
-        lo = max(0, centre - w)
-        hi = min(n_seg, centre + w + 1)
+    lo, hi, _ = window_segments(xy.shape[0] - 1, spacing, use_hint, s_hint, window)
     best = np.inf
     best_k = lo
     best_t = 0.0
     best_len2 = 0.0
     for k in range(lo, hi):
-        ax = xy[k, 0]
-        ay = xy[k, 1]
-        dx = xy[k + 1, 0] - ax
-        dy = xy[k + 1, 1] - ay
-        len2 = dx * dx + dy * dy
-        t = ((x - ax) * dx + (y - ay) * dy) / max(len2, 1e-18)
-        t = min(max(t, 0.0), 1.0)
-        cx = ax + dx * t - x
-        cy = ay + dy * t - y
-        d2 = cx * cx + cy * cy
+        d2, t, len2 = segment_d2(xy, k, x, y)
         if d2 < best:
             best, best_k, best_t, best_len2 = d2, k, t, len2
         elif d2 != d2:  # NaN (a NaN point): the first one wins, as np.argmin has it

@@ -18,7 +18,12 @@ import math
 import numpy as np
 from numba import njit
 
-from platoon_sumo.kernels.path import project_kernel, projection_at
+from platoon_sumo.kernels.path import (
+    project_kernel,
+    projection_at,
+    segment_d2,
+    window_segments,
+)
 
 BLOCK = 16
 """Segments per bounding circle of ``path_blocks``."""
@@ -66,21 +71,6 @@ def path_blocks(xy: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def _segment_d2(xy: np.ndarray, k: int, x: float, y: float) -> tuple[float, float, float]:
-    """(squared distance, t, squared length) of segment k to (x, y), as ``project_kernel``."""
-    ax = xy[k, 0]
-    ay = xy[k, 1]
-    dx = xy[k + 1, 0] - ax
-    dy = xy[k + 1, 1] - ay
-    len2 = dx * dx + dy * dy
-    t = ((x - ax) * dx + (y - ay) * dy) / max(len2, 1e-18)
-    t = min(max(t, 0.0), 1.0)
-    cx = ax + dx * t - x
-    cy = ay + dy * t - y
-    return cx * cx + cy * cy, t, len2
-
-
-@njit(cache=True)
 def project_pruned(
     xy: np.ndarray,
     blocks: np.ndarray,
@@ -104,14 +94,7 @@ def project_pruned(
     if n_blocks == 0 or n_blocks * BLOCK < n_seg or not (abs(x) < 1e100 and abs(y) < 1e100):
         # (a NaN or infinite point, or one so far away that its squares overflow)
         return project_kernel(xy, widths, spacing, length, use_hint, s_hint, window, x, y)
-    lo = 0
-    hi = n_seg
-    centre = 0
-    if use_hint:
-        w = int(window / spacing) + 1
-        centre = int(min(max(s_hint // spacing, 0.0), n_seg - 1.0))
-        lo = max(0, centre - w)
-        hi = min(n_seg, centre + w + 1)
+    lo, hi, centre = window_segments(n_seg, spacing, use_hint, s_hint, window)
     b_lo = lo // BLOCK
     b_hi = (hi - 1) // BLOCK + 1
     if use_hint:
@@ -141,12 +124,12 @@ def project_pruned(
         k0 = max(lo, b * BLOCK)
         k1 = min(hi, (b + 1) * BLOCK)
         for k in range(k0, k1):
-            d2, _, _ = _segment_d2(xy, k, x, y)
+            d2, _, _ = segment_d2(xy, k, x, y)
             if d2 < best or (d2 == best and k < best_k):
                 best = d2
                 best_k = k
                 bound = math.sqrt(best) + margin
-    _, best_t, best_len2 = _segment_d2(xy, best_k, x, y)
+    _, best_t, best_len2 = segment_d2(xy, best_k, x, y)
     return projection_at(xy, widths, spacing, length, x, y, best_k, best_t, best_len2, best)
 
 
