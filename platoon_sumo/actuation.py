@@ -45,6 +45,8 @@ class ActuationPort(Protocol):
 
     def request_lane_changes(self, requests: dict[str, int]) -> None: ...
 
+    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> None: ...
+
 
 @dataclass(frozen=True)
 class ActuationBatch:
@@ -56,6 +58,8 @@ class ActuationBatch:
     speed_cmd_mps: FloatArray
     yaw_rate_cmd_radps: FloatArray
     lane_change: IntArray
+    road_heading_rad: FloatArray
+    """Direction of the route path at each front bumper (sideways is across it)."""
     front_offset_m: float
     limits: MotionLimits
     model: VehicleModel
@@ -73,18 +77,22 @@ class ActuationResult:
 class Actuator(Protocol):
     sumo_drives: ClassVar[bool]
     """SUMO moves the vehicles along their lanes (their state is read back after each
-    step and SUMO makes their lane changes); False: we place them (SUMO neither brakes
-    nor steers them)."""
+    step); False: we place them (SUMO neither brakes nor steers them)."""
+    steers: ClassVar[bool]
+    """The controllers' heading commands move the vehicles sideways (planar, sublane);
+    False: SUMO keeps them on lane centres and makes the lane changes (lane)."""
 
     def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult: ...
 
 
 def check_actuator(cls: object) -> str | None:
-    if isinstance(getattr(cls, "sumo_drives", None), bool) and callable(
-        getattr(cls, "apply", None)
+    if (
+        isinstance(getattr(cls, "sumo_drives", None), bool)
+        and isinstance(getattr(cls, "steers", None), bool)
+        and callable(getattr(cls, "apply", None))
     ):
         return None
-    return "needs a boolean sumo_drives and apply()"
+    return "needs booleans sumo_drives and steers, and apply()"
 
 
 ACTUATORS: Registry[type[Actuator]] = Registry("actuation", check_actuator)
@@ -93,6 +101,7 @@ ACTUATORS: Registry[type[Actuator]] = Registry("actuation", check_actuator)
 @ACTUATORS.register("planar")
 class PlanarActuation:
     sumo_drives: ClassVar[bool] = False
+    steers: ClassVar[bool] = True
 
     def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult:
         new = batch.model.step(
@@ -112,6 +121,7 @@ class PlanarActuation:
 @ACTUATORS.register("lane")
 class LaneActuation:
     sumo_drives: ClassVar[bool] = True
+    steers: ClassVar[bool] = False
 
     def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult:
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
@@ -122,4 +132,22 @@ class LaneActuation:
         }
         if requests:
             sumo.request_lane_changes(requests)
+        return ActuationResult(None, {})
+
+
+@ACTUATORS.register("sublane")
+class SublaneActuation:
+    sumo_drives: ClassVar[bool] = True
+    steers: ClassVar[bool] = True
+
+    def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult:
+        """The speed command to SUMO; sideways, the displacement across the road that the
+        vehicle model predicts for this step from the commanded speed and yaw rate."""
+        sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
+        new = batch.model.step(
+            batch.state, batch.speed_cmd_mps, batch.yaw_rate_cmd_radps, batch.limits, batch.dt_s
+        )
+        heading = batch.road_heading_rad
+        dx, dy = new.x_m - batch.state.x_m, new.y_m - batch.state.y_m
+        sumo.shift_laterally(batch.vehicle_ids, dy * np.cos(heading) - dx * np.sin(heading))
         return ActuationResult(None, {})

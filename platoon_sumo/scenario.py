@@ -58,9 +58,10 @@ class SimulationConfig:
     seed: int = 42
     """Seeds SUMO and every random generator of ours."""
     lateral_resolution_m: float | None = 0.8
-    """SUMO sublane resolution [m]: planar platoons need it (without it their poses snap
-    to lane centres and SUMO drivers miss a car between lanes). null: no sublane model,
-    SUMO's lane changes take one step (enough when every platoon uses `actuation: lane`)."""
+    """SUMO sublane resolution [m]: planar and sublane platoons need it (without it
+    their poses snap to lane centres and SUMO drivers miss a car between lanes). null: no
+    sublane model, SUMO's lane changes take one step (enough when every platoon uses
+    `actuation: lane`)."""
     time_to_teleport_s: float | None = None
     """SUMO's jam teleport: a vehicle stuck this long [s] is moved ahead along its route
     (`--time-to-teleport`); each teleport is a `teleport` event. null (default): off,
@@ -412,7 +413,10 @@ class PlatoonConfig:
     and the pose is placed into SUMO (free lateral motion: robots, the paper's world, our
     own lane changes). `lane`: SUMO drives the vehicle along its lanes (lane keeping, the
     route's lane changes, its safe speed at junctions and lights as the last safety
-    layer) at the speed the controller and supervisor command; heading is SUMO's."""
+    layer) at the speed the controller and supervisor command; heading is SUMO's.
+    `sublane`: SUMO drives the speed as in `lane`, and the controller's heading moves the
+    car sideways within and across lanes through SUMO's sublane model (needs
+    `simulation.lateral_resolution_m`); SUMO makes no lane change of its own."""
     split_gap_m: float = 60.0
     """Without a laser, a follower farther than this from its predecessor counts as split
     from it (with a laser: when the predecessor is out of its scan) [m]."""
@@ -644,6 +648,15 @@ class RunPlan:
         return self.source.scenario
 
 
+def _steers(actuation: str) -> bool:
+    """Does this actuation move vehicles sideways (and need SUMO's sublane model)? An
+    unknown name is reported where the platoon is checked."""
+    try:
+        return bool(ACTUATORS.get(actuation).steers)
+    except LookupError:
+        return False
+
+
 def prepare(source: ScenarioSource) -> RunPlan:
     """Check a loaded scenario against the filesystem and the network."""
     sc = source.scenario
@@ -667,11 +680,11 @@ def prepare(source: ScenarioSource) -> RunPlan:
         raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
-    planar = [key for p, key in declared if p.actuation == "planar"]
-    if planar and sc.simulation.lateral_resolution_m is None:
+    steered = [(key, p.actuation) for p, key in declared if _steers(p.actuation)]
+    if steered and sc.simulation.lateral_resolution_m is None:
         raise ScenarioError(
             file, "simulation.lateral_resolution_m",
-            f"{planar[0]} uses planar actuation, which needs SUMO's sublane model",
+            f"{steered[0][0]} uses {steered[0][1]} actuation, which needs SUMO's sublane model",
             "set it (e.g. 0.8), or give the platoons `actuation: lane`",
         )  # fmt: skip
     platoons = tuple(

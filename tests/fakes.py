@@ -38,6 +38,7 @@ class FakeBackend:
         self.departed: list[str] = []
         self.arrived: list[str] = []
         self.removed: list[tuple[str, bool]] = []
+        self.lateral_shifts: dict[str, float] = {}
         self.vanished: list[str] = []
         """Vehicles someone else took out of SUMO since the last step."""
         self.speed_commands: dict[str, float] = {}
@@ -93,7 +94,7 @@ class FakeBackend:
 
     def add_vehicle(
         self, vehicle_id: str, edges: Sequence[str], type_id: str, depart_lane: int,
-        depart_pos_m: float, sumo_drives: bool,
+        depart_pos_m: float, sumo_drives: bool, steers: bool = False,
     ) -> None:  # fmt: skip
         self.queued.append((vehicle_id, FakeVehicle(depart_pos_m, sumo_drives=sumo_drives)))
 
@@ -166,6 +167,9 @@ class FakeBackend:
 
     def request_lane_changes(self, requests: dict[str, int]) -> None:
         self.lane_requests.update(requests)
+
+    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> None:
+        self.lateral_shifts.update(zip(vehicle_ids, map(float, offset_m), strict=True))
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))

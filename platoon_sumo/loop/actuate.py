@@ -38,6 +38,7 @@ class Actuate:
                 speed_cmd_mps=np.array([m.executed.speed_mps for m in group]),
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
+                road_heading_rad=np.array([m.path.heading_at(m.route_s_m) for m in group]),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
                 limits=platoon.limits,
                 model=platoon.model(),

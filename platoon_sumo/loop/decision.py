@@ -31,7 +31,7 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
         width_m=cfg.width_m,
         limits=m.platoon.limits,
         path=m.path,
-        lane_offset_m=m.lateral_offset_m if m.actuator.sumo_drives else 0.0,
+        lane_offset_m=0.0 if m.actuator.steers else m.lateral_offset_m,
         signal=m.signal,
         link_ahead=m.link_ahead,
         lane_change=m.lane_change,

@@ -54,11 +54,11 @@ def _room_for(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan])
 
 
 def _hand_over(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]) -> None:
-    drives = ACTUATORS.get(platoon.config.actuation).sumo_drives
+    actuator = ACTUATORS.get(platoon.config.actuation)
     for member in members:
         ctx.backend.add_vehicle(
             member.vehicle_id, platoon.edges, platoon.type_id, platoon.depart_lane,
-            member.depart_pos_m, sumo_drives=drives,
+            member.depart_pos_m, sumo_drives=actuator.sumo_drives, steers=actuator.steers,
         )  # fmt: skip
         ctx.waiting[member.vehicle_id] = member
 

@@ -54,6 +54,7 @@ class Backend(Protocol):
         depart_lane: int,
         depart_pos_m: float,
         sumo_drives: bool,
+        steers: bool = False,
     ) -> None: ...
 
     def lane_is_free(self, lane_id: str, from_m: float, to_m: float) -> bool: ...
@@ -94,6 +95,8 @@ class Backend(Protocol):
     def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
 
     def request_lane_changes(self, requests: dict[str, int]) -> None: ...
+
+    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> None: ...
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""

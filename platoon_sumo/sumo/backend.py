@@ -28,6 +28,10 @@ from platoon_sumo.world import STOP_STATES, LinkAhead, SignalAhead, VehicleAhead
 #: gaps (512) with sublane adjustments (1024); no cooperative, speed-gain or keep-right
 #: changes (SUMO's default is 1621).
 LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
+#: Lane-change mode of sublane actuation: only our sideways requests, each refused where
+#: it would cut into another vehicle's speed and braking gap (512); no change, lateral
+#: alignment or strategic move of SUMO's own.
+LANE_CHANGE_REQUESTS_ONLY = 512
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 
@@ -265,14 +269,16 @@ class SumoBackend:
         depart_lane: int,
         depart_pos_m: float,
         sumo_drives: bool,
+        steers: bool = False,
         depart_speed_mps: float = 0.0,
     ) -> None:
         """Ask SUMO to insert a platoon vehicle now; it appears once there is room.
 
-        `sumo_drives` (lane actuation): SUMO keeps the vehicle in its lanes and makes the
-        route's lane changes, and its safe speed, lights and right of way cap our speed
-        command; it makes no lane change of its own accord (speed gain, keeping right,
-        cooperation) so members stay in one lane."""
+        `sumo_drives`: SUMO's safe speed, lights and right of way cap our speed command.
+        Without `steers` (lane actuation) SUMO keeps the vehicle in its lanes and makes
+        the route's lane changes, none of its own accord (speed gain, keeping right,
+        cooperation) so members stay in one lane; with it (sublane actuation) only our
+        sideways requests move it."""
         route_id = f"route_{vehicle_id}"
         try:
             libsumo.route.add(route_id, list(edges))
@@ -286,7 +292,8 @@ class SumoBackend:
                 departSpeed=repr(depart_speed_mps),
             )
             if sumo_drives:
-                libsumo.vehicle.setLaneChangeMode(vehicle_id, LANE_CHANGE_STRATEGIC_ONLY)
+                mode = LANE_CHANGE_REQUESTS_ONLY if steers else LANE_CHANGE_STRATEGIC_ONLY
+                libsumo.vehicle.setLaneChangeMode(vehicle_id, mode)
             else:  # we place it: SUMO must neither brake it nor change its lane
                 libsumo.vehicle.setSpeedMode(vehicle_id, 0)
                 libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
@@ -424,6 +431,13 @@ class SumoBackend:
             # for one step: re-issued while the controller asks, never carried onto the
             # next edge (where that index may lead elsewhere)
             veh.changeLane(vid, lane, self.options.step_s)
+
+    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: NDArray[np.float64]) -> None:
+        """Sublane actuation: move each vehicle sideways by this much (left +) in the next
+        step, as far as its lateral speed and the lane-change mode allow."""
+        veh = libsumo.vehicle
+        for vid, offset in zip(vehicle_ids, offset_m.tolist(), strict=True):
+            veh.changeSublane(vid, offset)
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: at the end of its route as an arrival (tripinfo),
