@@ -45,7 +45,7 @@ class ActuationPort(Protocol):
 
     def request_lane_changes(self, requests: dict[str, int]) -> None: ...
 
-    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> None: ...
+    def set_lateral_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,7 @@ class SublaneActuation:
     steers: ClassVar[bool] = True
 
     def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult:
-        """The speed command to SUMO; sideways, the displacement across the road that the
+        """The speed command to SUMO; sideways, the speed across the road that the
         vehicle model predicts for this step from the commanded speed and yaw rate."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
         new = batch.model.step(
@@ -149,5 +149,6 @@ class SublaneActuation:
         )
         heading = batch.road_heading_rad
         dx, dy = new.x_m - batch.state.x_m, new.y_m - batch.state.y_m
-        sumo.shift_laterally(batch.vehicle_ids, dy * np.cos(heading) - dx * np.sin(heading))
+        lateral_mps = (dy * np.cos(heading) - dx * np.sin(heading)) / batch.dt_s
+        sumo.set_lateral_speeds(batch.vehicle_ids, lateral_mps)
         return ActuationResult(None, {})

@@ -38,7 +38,7 @@ class FakeBackend:
         self.departed: list[str] = []
         self.arrived: list[str] = []
         self.removed: list[tuple[str, bool]] = []
-        self.lateral_shifts: dict[str, float] = {}
+        self.lateral_speeds: dict[str, float] = {}
         self.vanished: list[str] = []
         """Vehicles someone else took out of SUMO since the last step."""
         self.speed_commands: dict[str, float] = {}
@@ -168,8 +168,8 @@ class FakeBackend:
     def request_lane_changes(self, requests: dict[str, int]) -> None:
         self.lane_requests.update(requests)
 
-    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> None:
-        self.lateral_shifts.update(zip(vehicle_ids, map(float, offset_m), strict=True))
+    def set_lateral_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None:
+        self.lateral_speeds.update(zip(vehicle_ids, map(float, speed_mps), strict=True))
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))

@@ -31,7 +31,12 @@ LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
 #: Lane-change mode of sublane actuation: only our sideways requests, each refused where
 #: it would cut into another vehicle's speed and braking gap (512); no change, lateral
 #: alignment or strategic move of SUMO's own.
-LANE_CHANGE_REQUESTS_ONLY = 512
+LANE_CHANGE_REQUESTS_ONLY = 256
+#: Sublane actuation: slower sideways commands are a stop of the lateral move [m/s].
+MIN_LATERAL_SPEED_MPS = 0.005
+#: Sublane actuation asks for a lateral offset at least this far (and v² m) beyond,
+#: so that SUMO's stopping bound does not slow the move [m].
+LATERAL_REACH_M = 1.0
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 
@@ -432,12 +437,23 @@ class SumoBackend:
             # next edge (where that index may lead elsewhere)
             veh.changeLane(vid, lane, self.options.step_s)
 
-    def shift_laterally(self, vehicle_ids: Sequence[str], offset_m: NDArray[np.float64]) -> None:
-        """Sublane actuation: move each vehicle sideways by this much (left +) in the next
-        step, as far as its lateral speed and the lane-change mode allow."""
+    def set_lateral_speeds(
+        self, vehicle_ids: Sequence[str], speed_mps: NDArray[np.float64]
+    ) -> None:
+        """Sublane actuation: move each vehicle sideways (left +) at this speed in the next
+        step. SUMO's lateral move runs at most the vehicle's `maxSpeedLat` and no faster
+        than it could stop at the offset asked for, so the speed is set as that limit
+        and the offset asked for lies well beyond (re-asked every step; 0 stops it); its
+        lane-change mode still refuses a move into another vehicle's gap."""
         veh = libsumo.vehicle
-        for vid, offset in zip(vehicle_ids, offset_m.tolist(), strict=True):
-            veh.changeSublane(vid, offset)
+        for vid, speed in zip(vehicle_ids, speed_mps.tolist(), strict=True):
+            magnitude = abs(speed)
+            if magnitude < MIN_LATERAL_SPEED_MPS:
+                veh.changeSublane(vid, 0.0)
+                continue
+            veh.setMaxSpeedLat(vid, magnitude)
+            reach = max(LATERAL_REACH_M, magnitude * magnitude)
+            veh.changeSublane(vid, reach if speed > 0 else -reach)
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: at the end of its route as an arrival (tripinfo),
