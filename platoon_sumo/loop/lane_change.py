@@ -1,9 +1,10 @@
-"""Gap acceptance for the lane changes of planar-actuated routes.
+"""Gap acceptance for the lane changes our controllers steer (planar and sublane).
 
-Planar members steer their route's lane changes themselves, so nobody in SUMO checks the
-target lane for them: this stage tells the supervisor whether the target lane has room
-(`LaneChangeAhead.clear`) and, during the move, the nearest vehicle ahead in it.
-SUMO-driven members (lane actuation) get None: SUMO makes their changes.
+Members that steer their route's lane changes themselves are not checked by SUMO (planar:
+placed; sublane: SUMO executes their sideways moves as asked): this stage tells the
+supervisor whether the target lane has room (`LaneChangeAhead.clear`) and, during the
+move, the nearest vehicle ahead in it. Lane-actuated members get None: SUMO makes their
+changes.
 """
 
 from __future__ import annotations
@@ -71,7 +72,7 @@ class LaneChangeGaps:
 
     def __call__(self, ctx: StepContext) -> None:
         for m in ctx.fleet:
-            m.lane_change = None if m.actuator.sumo_drives else self._ahead(ctx, m)
+            m.lane_change = self._ahead(ctx, m) if m.actuator.steers else None
 
     def _ahead(self, ctx: StepContext, m: Member) -> LaneChangeAhead | None:
         """Is the target lane of the next lane change free for the whole move?

@@ -28,10 +28,11 @@ from platoon_sumo.world import STOP_STATES, LinkAhead, SignalAhead, VehicleAhead
 #: gaps (512) with sublane adjustments (1024); no cooperative, speed-gain or keep-right
 #: changes (SUMO's default is 1621).
 LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
-#: Lane-change mode of sublane actuation: only our sideways requests, each refused where
-#: it would cut into another vehicle's speed and braking gap (512); no change, lateral
-#: alignment or strategic move of SUMO's own.
-LANE_CHANGE_REQUESTS_ONLY = 256
+#: Lane-change mode of sublane actuation: only our sideways requests, executed as asked
+#: (our gap acceptance, `LaneChangeGaps`, judges the route's lane changes as for planar
+#: cars; SUMO's own checks blocked platoon members moving sideways beside each other);
+#: no change, lateral alignment or strategic move of SUMO's own.
+LANE_CHANGE_REQUESTS_ONLY = 0
 #: Sublane actuation: slower sideways commands are a stop of the lateral move [m/s].
 MIN_LATERAL_SPEED_MPS = 0.005
 #: Sublane actuation asks for a lateral offset at least this far (and v² m) beyond,
