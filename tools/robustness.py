@@ -1146,7 +1146,7 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=d.seed, help="seed of everything")
     p.add_argument("--platoons", type=int, default=d.platoons, help="platoons per network")
     p.add_argument("--members", type=int, default=d.members, help="cars per platoon")
-    p.add_argument("--actuation", default=d.actuation, choices=("lane", "planar"))
+    p.add_argument("--actuation", default=d.actuation, choices=("lane", "sublane", "planar"))
     p.add_argument("--warmup", type=float, default=d.warmup_s, help="first departure [s]")
     p.add_argument("--stagger", type=float, default=d.stagger_s, help="between departures [s]")
     p.add_argument("--min-route", type=float, help="shortest platoon route (default: auto) [m]")
