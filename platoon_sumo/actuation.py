@@ -59,7 +59,7 @@ class ActuationBatch:
     yaw_rate_cmd_radps: FloatArray
     lane_change: IntArray
     road_heading_rad: FloatArray
-    """Direction of the route path at each front bumper (sideways is across it)."""
+    """Direction of the route path at each vehicle's middle (sideways is across it)."""
     front_offset_m: float
     limits: MotionLimits
     model: VehicleModel
