@@ -171,6 +171,12 @@ class FakeBackend:
     def set_lateral_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None:
         self.lateral_speeds.update(zip(vehicle_ids, map(float, speed_mps), strict=True))
 
+    def body_directions(
+        self, vehicle_ids: Sequence[str], ahead_m: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        zeros = np.zeros(len(vehicle_ids))  # the fake's lane runs along +x
+        return zeros, zeros
+
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))
         self.vehicles.pop(vehicle_id)

@@ -32,18 +32,14 @@ class Actuate:
             platoon, actuator = group[0].platoon, group[0].actuator
             rows = fleet.rows(group)
             kin = fleet.kin[rows]
-            length_m = platoon.config.vehicle.length_m
             batch = ActuationBatch(
                 vehicle_ids=tuple(m.id for m in group),
                 state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
                 speed_cmd_mps=np.array([m.executed.speed_mps for m in group]),
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
-                # at mid-body: SUMO's angle is the direction from the back to the front
-                road_heading_rad=np.array(
-                    [m.path.heading_at(m.route_s_m - 0.5 * length_m) for m in group]
-                ),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
+                length_m=platoon.config.vehicle.length_m,
                 limits=platoon.limits,
                 model=platoon.model(),
                 dt_s=dt_s,

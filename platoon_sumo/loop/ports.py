@@ -98,6 +98,10 @@ class Backend(Protocol):
 
     def set_lateral_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
 
+    def body_directions(
+        self, vehicle_ids: Sequence[str], ahead_m: FloatArray
+    ) -> tuple[FloatArray, FloatArray]: ...
+
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""
         ...

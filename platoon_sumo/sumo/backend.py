@@ -38,6 +38,18 @@ MIN_LATERAL_SPEED_MPS = 0.005
 #: Sublane actuation asks for a lateral offset at least this far (and v² m) beyond,
 #: so that SUMO's stopping bound does not slow the move [m].
 LATERAL_REACH_M = 1.0
+#: Sublane actuation: a vehicle slower than this [m/s] on a lane its route cannot
+#: continue from within `LANE_END_REACH_M` has its lane change made by SUMO (our
+#: steering moves a car sideways only while it drives forward).
+HAND_OVER_BELOW_MPS = 2.0
+#: [m] see `HAND_OVER_BELOW_MPS`.
+LANE_END_REACH_M = 30.0
+#: Lateral speed of SUMO's lane changes made for a slow sublane-actuated car [m/s]
+#: (SUMO's default `maxSpeedLat`).
+HANDED_OVER_LATERAL_MPS = 1.0
+#: A car whose lane change SUMO made is steered by us again within this distance of
+#: its new lane's centre [m].
+HANDED_BACK_WITHIN_M = 0.3
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 
@@ -118,6 +130,11 @@ class SumoBackend:
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
+        self._polylines: dict[str, tuple[NDArray[np.float64], NDArray[np.float64], float]] = {}
+        self._lanes_behind: dict[str, list[str]] = {}
+        """Sublane actuation: the lanes each platoon vehicle was seen on, newest first."""
+        self._handed_over: set[str] = set()
+        """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
         self._in_network = 0
@@ -369,6 +386,8 @@ class SumoBackend:
         arrived = tuple(libsumo.simulation.getArrivedIDList())
         for vid in arrived:
             self._geometry.pop(vid, None)
+            self._lanes_behind.pop(vid, None)
+            self._handed_over.discard(vid)
         self._known_gone = set(arrived)
         return arrived
 
@@ -381,6 +400,8 @@ class SumoBackend:
         )
         for vid in gone:
             self._geometry.pop(vid, None)
+            self._lanes_behind.pop(vid, None)
+            self._handed_over.discard(vid)
         self._known_gone.update(gone)
         self._in_network -= len(gone)
         return gone
@@ -444,10 +465,15 @@ class SumoBackend:
         """Sublane actuation: move each vehicle sideways (left +) at this speed in the next
         step. SUMO's lateral move runs at most the vehicle's `maxSpeedLat` and no faster
         than it could stop at the offset asked for, so the speed is set as that limit
-        and the offset asked for lies well beyond (re-asked every step; 0 stops it); its
-        lane-change mode still refuses a move into another vehicle's gap."""
+        and the offset asked for lies well beyond (re-asked every step; 0 stops it).
+
+        A slow vehicle on a lane from which its route cannot go on within
+        `LANE_END_REACH_M` (SUMO's best lanes) is handed to SUMO's own lane change
+        instead (`_hand_over`) until it is on a lane that continues or drives again."""
         veh = libsumo.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps.tolist(), strict=True):
+            if self._hand_over(vid):
+                continue
             magnitude = abs(speed)
             if magnitude < MIN_LATERAL_SPEED_MPS:
                 veh.changeSublane(vid, 0.0)
@@ -455,6 +481,105 @@ class SumoBackend:
             veh.setMaxSpeedLat(vid, magnitude)
             reach = max(LATERAL_REACH_M, magnitude * magnitude)
             veh.changeSublane(vid, reach if speed > 0 else -reach)
+
+    def _hand_over(self, vid: str) -> bool:
+        """Should SUMO make this sublane-actuated vehicle's lane change now?
+
+        Our steering moves a car sideways only as it drives forward (a kinematic model);
+        a car that a queue or the end of its lane holds on a lane its route cannot
+        continue from would stand there for good. Such a car (slower than
+        `HAND_OVER_BELOW_MPS`, the route leaving its lane within `LANE_END_REACH_M`)
+        gets the lane-change mode of lane actuation: SUMO changes to the lane its route
+        needs when the gap there is safe, sideways even at a standstill, and centres it
+        there. Back to our steering (mode 0) once it is on a lane that continues, within
+        `HANDED_BACK_WITHIN_M` of its centre."""
+        veh = libsumo.vehicle
+        handed = vid in self._handed_over
+        lane_id = veh.getLaneID(vid)
+        if not lane_id or lane_id.startswith(":"):
+            needs = handed  # inside a junction: no lane change, nothing to decide
+        elif handed or veh.getSpeed(vid) < HAND_OVER_BELOW_MPS:
+            position = veh.getLanePosition(vid)
+            reach = math.inf if handed else LANE_END_REACH_M
+            needs = any(
+                lane == lane_id and offset != 0 and length - position < reach
+                for lane, length, _, offset, _, _ in veh.getBestLanes(vid)
+            ) or (handed and abs(veh.getLateralLanePosition(vid)) > HANDED_BACK_WITHIN_M)
+        else:
+            needs = False
+        if needs and not handed:
+            veh.setLaneChangeMode(vid, LANE_CHANGE_STRATEGIC_ONLY)
+            veh.setMaxSpeedLat(vid, HANDED_OVER_LATERAL_MPS)
+            self._handed_over.add(vid)
+        elif handed and not needs:
+            veh.setLaneChangeMode(vid, LANE_CHANGE_REQUESTS_ONLY)
+            self._handed_over.discard(vid)
+        return needs
+
+    def body_directions(
+        self, vehicle_ids: Sequence[str], ahead_m: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """SUMO's angle of each vehicle without its sideways part [rad, counter-clockwise
+        from +x], now and once the vehicle has moved `ahead_m` further along its lanes.
+
+        SUMO's angle is the direction from the back to the front bumper, both placed on
+        the centre-lines of the lanes the vehicle occupies (the back may be on the lanes
+        it came from), turned by an angle that follows its lateral motion. The lanes
+        behind are the ones this method saw the vehicle on (call it every step); beyond
+        the known lanes a lane's first or last segment is extended. A vehicle on no lane
+        (teleporting) gets its own angle twice."""
+        veh = libsumo.vehicle
+        now = np.empty(len(vehicle_ids))
+        later = np.empty(len(vehicle_ids))
+        for i, (vid, ahead) in enumerate(zip(vehicle_ids, ahead_m.tolist(), strict=True)):
+            lane_id = veh.getLaneID(vid)
+            if not lane_id:
+                now[i] = later[i] = math.radians(90.0 - veh.getAngle(vid))
+                continue
+            lanes = self._lanes_behind.setdefault(vid, [])
+            if not lanes or lanes[0] != lane_id:
+                lanes.insert(0, lane_id)
+                del lanes[4:]
+            geom = self._geometry.get(vid)
+            length = geom[0] if geom is not None else veh.getLength(vid)
+            front = veh.getLanePosition(vid)
+            now[i] = self._chord(lanes, front, length)
+            later[i] = self._chord(lanes, front + ahead, length)
+        return now, later
+
+    def _chord(self, lanes: list[str], front_m: float, length_m: float) -> float:
+        fx, fy = self._lane_point(lanes, front_m)
+        bx, by = self._lane_point(lanes, front_m - length_m)
+        return math.atan2(fy - by, fx - bx)
+
+    def _lane_point(self, lanes: list[str], pos_m: float) -> tuple[float, float]:
+        """The point `pos_m` along lanes[0] (SUMO's lane positions), on the lanes before
+        it (lanes[1:], newest first) when negative."""
+        k = 0
+        while pos_m < 0.0 and k + 1 < len(lanes):
+            k += 1
+            pos_m += self._lane_length(lanes[k])
+        xy, cum, scale = self._lane_polyline(lanes[k])
+        at = pos_m * scale
+        j = int(np.clip(np.searchsorted(cum, at) - 1, 0, len(cum) - 2))
+        seg = cum[j + 1] - cum[j]
+        t = (at - cum[j]) / seg if seg > 0 else 0.0
+        x0, y0 = xy[j]
+        x1, y1 = xy[j + 1]
+        return x0 + (x1 - x0) * t, y0 + (y1 - y0) * t
+
+    def _lane_polyline(
+        self, lane_id: str
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """Shape, cumulative length along it, and shape length per unit of lane position
+        (SUMO's lane length may differ from its shape's)."""
+        cached = self._polylines.get(lane_id)
+        if cached is None:
+            xy = self.lane_shape(lane_id)
+            cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+            length = self._lane_length(lane_id)
+            cached = self._polylines[lane_id] = (xy, cum, cum[-1] / length if length > 0 else 1.0)
+        return cached
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: at the end of its route as an arrival (tripinfo),
@@ -467,6 +592,8 @@ class SumoBackend:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
         self._in_network -= on_road  # SUMO does not count our removals as arrivals
         self._geometry.pop(vehicle_id, None)
+        self._lanes_behind.pop(vehicle_id, None)
+        self._handed_over.discard(vehicle_id)
         self._known_gone.add(vehicle_id)
 
     def route_contexts(
@@ -496,10 +623,7 @@ class SumoBackend:
         lane = veh.getLaneID(vehicle_id)
         if not lane or lane.startswith(":"):
             return None
-        length = self._lane_lengths.get(lane)
-        if length is None:
-            length = self._lane_lengths[lane] = float(libsumo.lane.getLength(lane))
-        remaining = length - veh.getLanePosition(vehicle_id)
+        remaining = self._lane_length(lane) - veh.getLanePosition(vehicle_id)
         if remaining > horizon_m:
             return None
         links = veh.getNextLinks(vehicle_id)
@@ -507,6 +631,12 @@ class SumoBackend:
             return None
         _, has_prio, is_open, has_foe, _, state, _, _ = links[0]
         return LinkAhead(str(state), bool(has_prio), bool(is_open), bool(has_foe), remaining)
+
+    def _lane_length(self, lane_id: str) -> float:
+        length = self._lane_lengths.get(lane_id)
+        if length is None:
+            length = self._lane_lengths[lane_id] = float(libsumo.lane.getLength(lane_id))
+        return length
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
         """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""

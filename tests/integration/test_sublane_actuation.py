@@ -1,16 +1,23 @@
 """Sublane actuation: SUMO drives the speed, our controllers' heading moves the car
 sideways within and across lanes (SUMO's sublane model), and the car stays a SUMO
 vehicle. On a straight two-lane road a weaving leader (`tests/plugins/weave.py`) steers
-beside the lane centre, or into the next lane, and a laser follower follows it."""
+beside the lane centre, or into the next lane, and a laser follower follows it. On a
+three-lane approach whose left lane alone turns left, the route's two lane changes are
+steered along the path, and a car held on the wrong lane to its end gets there through
+SUMO's own lane change."""
 
 from __future__ import annotations
 
 import json
+import subprocess
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from platoon_sumo.runner import load_plan, run
+from platoon_sumo.sumo import backend
+from platoon_sumo.sumo.backend import sumo_binary
 from tests.helpers import REPO
 
 STRAIGHT_NET = REPO / "networks" / "straight" / "straight.net.xml"
@@ -79,3 +86,102 @@ def test_steered_actuation_needs_the_sublane_model(write_scenario, actuation):
     }
     with pytest.raises(ScenarioError, match=f"uses {actuation} actuation"):
         load_plan(write_scenario(scenario))
+
+
+NODES = """<nodes>
+  <node id="W" x="0" y="0"/> <node id="C" x="200" y="0" type="priority"/>
+  <node id="E" x="400" y="0"/> <node id="N" x="200" y="200"/>
+</nodes>"""
+EDGES = """<edges>
+  <edge id="WC" from="W" to="C" priority="2" numLanes="3" speed="13.89"/>
+  <edge id="CE" from="C" to="E" priority="2" numLanes="2" speed="13.89"/>
+  <edge id="CN" from="C" to="N" priority="1" numLanes="1" speed="13.89"/>
+</edges>"""
+CONNECTIONS = """<connections>
+  <connection from="WC" to="CE" fromLane="0" toLane="0"/>
+  <connection from="WC" to="CE" fromLane="1" toLane="1"/>
+  <connection from="WC" to="CN" fromLane="2" toLane="0"/>
+</connections>"""
+
+
+@pytest.fixture(scope="module")
+def left_turn_lane(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """W-C, 200 m and three lanes, of which only the left one (index 2) turns left
+    into C-N; the right two go straight on to C-E."""
+    d = tmp_path_factory.mktemp("left_turn_lane")
+    (d / "x.nod.xml").write_text(NODES)
+    (d / "x.edg.xml").write_text(EDGES)
+    (d / "x.con.xml").write_text(CONNECTIONS)
+    net = d / "x.net.xml"
+    subprocess.run(
+        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
+         "-x", str(d / "x.con.xml"), "-o", str(net), "--no-turnarounds"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return net
+
+
+def turn_left(write_scenario, tmp_path, net: Path, platoon: dict) -> tuple[dict, pd.DataFrame]:
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 90.0, "seed": 1, "lateral_resolution_m": 0.8},
+        "network": {"net_file": str(net)},
+        "platoons": [{"id": "p", "depart_s": 1.0, "actuation": "sublane",
+                      "route": {"edges": ["WC", "CN"]}, **platoon}],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    return summary, pd.read_csv(out / "trajectories.csv")
+
+
+def test_the_routes_lane_changes_are_steered_along_the_path(
+    left_turn_lane, write_scenario, tmp_path
+):
+    """The path blends from lane 0 to lane 2 over the middle of W-C (10 degrees off the
+    lanes at most). The lateral speed was once measured across the path instead of
+    across SUMO's lane: the difference, fed back every step, drove cars to the right
+    while they were asked to go left."""
+    follower = {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                "params": {"on_lost": "route_following", "corridor_margin_rel": 1.2}}  # fmt: skip
+    summary, traj = turn_left(write_scenario, tmp_path, left_turn_lane, {
+        "members": 3, "spacing_m": 8.0, "depart_lane": 0,
+        "leader": {"type": "route_following", "params": {"cruise_speed_mps": 11.0}},
+        "follower": follower,
+    })  # fmt: skip
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
+    for vid in ("p.0", "p.1", "p.2"):
+        rows = traj[traj["vehicle_id"] == vid]
+        lanes = rows["lane_id"].tolist()
+        assert lanes[-1] == "CN_0", vid  # went on to the end of C-N
+        on_approach = rows[rows["lane_id"].str.startswith("WC_")]
+        assert on_approach["lane_id"].iloc[-1] == "WC_2", vid
+        assert not rows["lane_id"].isin(["CE_0", "CE_1"]).any(), vid
+    leader = traj[(traj["vehicle_id"] == "p.0") & traj["lane_id"].str.startswith("WC_")]
+    assert leader["lateral_offset_m"].abs().max() < 0.5
+
+
+@pytest.mark.parametrize("hand_over", [True, False])
+def test_a_car_held_on_the_wrong_lane_to_its_end_gets_the_lane_through_sumo(
+    left_turn_lane, write_scenario, tmp_path, monkeypatch, hand_over
+):
+    """The controller keeps lane 0 until it has passed where W-C's lanes end: SUMO stops
+    the car at the end of lane 0, from which the route cannot go on, where steering
+    cannot move it sideways. Standing there, its lane change is handed to SUMO, which
+    moves it to lane 2 at a standstill; from there the controller drives it on. Without
+    the hand-over it stands at the end of lane 0 for good."""
+    if not hand_over:
+        monkeypatch.setattr(backend, "HAND_OVER_BELOW_MPS", 0.0)
+    summary, traj = turn_left(write_scenario, tmp_path, left_turn_lane, {
+        "members": 1, "depart_lane": 0, "depart_pos_m": 20.0,
+        "leader": {"type": "hold_lane:HoldLane", "params": {"hold_until_s": 205.0}},
+    })  # fmt: skip
+    assert summary["collisions"] == 0
+    lanes = traj["lane_id"]
+    on_approach = traj[lanes.str.startswith("WC_")]
+    if hand_over:
+        assert lanes.iloc[-1] == "CN_0"
+        assert on_approach["lane_id"].iloc[-1] == "WC_2"
+        stood = on_approach[(on_approach["speed_mps"] < 0.1) & (on_approach["lane_id"] == "WC_0")]
+        assert len(stood) > 0  # it was held at the end of lane 0 first
+    else:
+        assert lanes.iloc[-1] == "WC_0"
+        assert traj["speed_mps"].iloc[-1] < 0.1
