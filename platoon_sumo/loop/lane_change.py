@@ -101,6 +101,18 @@ class LaneChangeGaps:
             if hold is not None:
                 return LaneChangeAhead(hold, clear=False, target_leader=leader)
             return LaneChangeAhead(distance, clear=True, target_leader=leader)
+        # Before the move: the member itself is no gap to wait for, nor are the target
+        # lanes it already drives in (a steered car may be there before its path: it
+        # followed its predecessor, or SUMO made the change for it standing). Counted,
+        # its own follower right behind it in that lane held it, and the follower waited
+        # for it: members of a platoon stood beside each other for good.
+        here = ctx.world.lane_ids[ctx.world.index[m.id]] if m.id in ctx.world.index else ""
+        targets = change.target_lane_ids
+        if here in targets:
+            targets = targets[targets.index(here) + 1 :]
+        occupants = [
+            o for lane in targets for o in ctx.backend.lane_occupants(lane) if o[0] != m.id
+        ]
         pace = max(speed, p.min_pace_mps)
         last = p.instants - 1
         for k in range(p.instants):

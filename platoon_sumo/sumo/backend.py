@@ -132,7 +132,9 @@ class SumoBackend:
         self._lane_lengths: dict[str, float] = {}
         self._polylines: dict[str, tuple[NDArray[np.float64], NDArray[np.float64], float]] = {}
         self._lanes_behind: dict[str, list[str]] = {}
-        """Sublane actuation: the lanes each platoon vehicle was seen on, newest first."""
+        """Sublane actuation: the lanes each platoon vehicle drove along, newest first (one
+        per edge: a lane change replaces the lane of the edge)."""
+        self._lane_edges: dict[str, str] = {}
         self._handed_over: set[str] = set()
         """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
         self._type_classes: dict[str, str] = {}
@@ -508,6 +510,7 @@ class SumoBackend:
         else:
             needs = False
         if needs and not handed:
+            veh.changeSublane(vid, 0.0)  # our last request would still win over SUMO's
             veh.setLaneChangeMode(vid, LANE_CHANGE_STRATEGIC_ONLY)
             veh.setMaxSpeedLat(vid, HANDED_OVER_LATERAL_MPS)
             self._handed_over.add(vid)
@@ -525,8 +528,8 @@ class SumoBackend:
         SUMO's angle is the direction from the back to the front bumper, both placed on
         the centre-lines of the lanes the vehicle occupies (the back may be on the lanes
         it came from), turned by an angle that follows its lateral motion. The lanes
-        behind are the ones this method saw the vehicle on (call it every step); beyond
-        the known lanes a lane's first or last segment is extended. A vehicle on no lane
+        behind are the ones this method saw the vehicle drive along, one per edge (call it
+        every step); beyond them a lane's first or last segment is extended. A vehicle on no lane
         (teleporting) gets its own angle twice."""
         veh = libsumo.vehicle
         now = np.empty(len(vehicle_ids))
@@ -538,8 +541,11 @@ class SumoBackend:
                 continue
             lanes = self._lanes_behind.setdefault(vid, [])
             if not lanes or lanes[0] != lane_id:
-                lanes.insert(0, lane_id)
-                del lanes[4:]
+                if lanes and self._lane_edge(lanes[0]) == self._lane_edge(lane_id):
+                    lanes[0] = lane_id  # a lane change: the lanes behind stay behind
+                else:
+                    lanes.insert(0, lane_id)
+                    del lanes[4:]
             geom = self._geometry.get(vid)
             length = geom[0] if geom is not None else veh.getLength(vid)
             front = veh.getLanePosition(vid)
@@ -631,6 +637,12 @@ class SumoBackend:
             return None
         _, has_prio, is_open, has_foe, _, state, _, _ = links[0]
         return LinkAhead(str(state), bool(has_prio), bool(is_open), bool(has_foe), remaining)
+
+    def _lane_edge(self, lane_id: str) -> str:
+        edge = self._lane_edges.get(lane_id)
+        if edge is None:
+            edge = self._lane_edges[lane_id] = str(libsumo.lane.getEdgeID(lane_id))
+        return edge
 
     def _lane_length(self, lane_id: str) -> float:
         length = self._lane_lengths.get(lane_id)
