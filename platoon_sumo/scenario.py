@@ -416,7 +416,8 @@ class PlatoonConfig:
     layer) at the speed the controller and supervisor command; heading is SUMO's.
     `sublane`: SUMO drives the speed as in `lane`, and the controller's heading moves the
     car sideways within and across lanes through SUMO's sublane model (needs
-    `simulation.lateral_resolution_m`); SUMO makes no lane change of its own."""
+    `simulation.lateral_resolution_m`); SUMO makes no lane change of its own, except the
+    route's change for a car standing or crawling on a lane its route leaves."""
     split_gap_m: float = 60.0
     """Without a laser, a follower farther than this from its predecessor counts as split
     from it (with a laser: when the predecessor is out of its scan) [m]."""

@@ -38,12 +38,15 @@ MIN_LATERAL_SPEED_MPS = 0.005
 #: Sublane actuation asks for a lateral offset at least this far (and v² m) beyond,
 #: so that SUMO's stopping bound does not slow the move [m].
 LATERAL_REACH_M = 1.0
-#: Sublane actuation: a vehicle slower than this [m/s] on a lane its route cannot
-#: continue from within `LANE_END_REACH_M` has its lane change made by SUMO (our
-#: steering moves a car sideways only while it drives forward).
+#: Sublane actuation: a vehicle slower than this [m/s] on a lane its route leaves
+#: within `LANE_END_REACH_M` (or on this edge, after `HAND_OVER_AFTER_S`) has its lane
+#: change made by SUMO (our steering moves a car sideways only while it drives).
 HAND_OVER_BELOW_MPS = 2.0
 #: [m] see `HAND_OVER_BELOW_MPS`.
 LANE_END_REACH_M = 30.0
+#: Sublane actuation: a vehicle slow this long [s] on a lane its route leaves on this
+#: edge has its lane change made by SUMO (held by our gap check before a queue).
+HAND_OVER_AFTER_S = 10.0
 #: Lateral speed of SUMO's lane changes made for a slow sublane-actuated car [m/s]
 #: (SUMO's default `maxSpeedLat`).
 HANDED_OVER_LATERAL_MPS = 1.0
@@ -136,6 +139,7 @@ class SumoBackend:
         per edge: a lane change replaces the lane of the edge)."""
         self._lane_edges: dict[str, str] = {}
         self._handed_over: set[str] = set()
+        self._slow_since: dict[str, float] = {}
         """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
@@ -390,6 +394,7 @@ class SumoBackend:
             self._geometry.pop(vid, None)
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
+            self._slow_since.pop(vid, None)
         self._known_gone = set(arrived)
         return arrived
 
@@ -404,6 +409,7 @@ class SumoBackend:
             self._geometry.pop(vid, None)
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
+            self._slow_since.pop(vid, None)
         self._known_gone.update(gone)
         self._in_network -= len(gone)
         return gone
@@ -487,24 +493,36 @@ class SumoBackend:
     def _hand_over(self, vid: str) -> bool:
         """Should SUMO make this sublane-actuated vehicle's lane change now?
 
-        Our steering moves a car sideways only as it drives forward (a kinematic model);
-        a car that a queue or the end of its lane holds on a lane its route cannot
-        continue from would stand there for good. Such a car (slower than
-        `HAND_OVER_BELOW_MPS`, the route leaving its lane within `LANE_END_REACH_M`)
+        Our steering moves a car sideways only as it drives forward (a kinematic model).
+        A car that a queue or the end of its lane holds on a lane its route cannot
+        continue from would stand there for good; so would one that our gap check holds
+        before a change into a lane whose queue never leaves a gap (SUMO's drivers make
+        room only for a change SUMO knows of). Such a car, slower than
+        `HAND_OVER_BELOW_MPS` with the route leaving its lane within `LANE_END_REACH_M`,
+        or slow for `HAND_OVER_AFTER_S` with the route leaving its lane on this edge,
         gets the lane-change mode of lane actuation: SUMO changes to the lane its route
         needs when the gap there is safe, sideways even at a standstill, and centres it
-        there. Back to our steering (mode 0) once it is on a lane that continues, within
-        `HANDED_BACK_WITHIN_M` of its centre."""
+        there. Back to our steering (mode 0) once it is on a lane that continues,
+        within `HANDED_BACK_WITHIN_M` of its centre."""
         veh = libsumo.vehicle
         handed = vid in self._handed_over
         lane_id = veh.getLaneID(vid)
+        if veh.getSpeed(vid) < HAND_OVER_BELOW_MPS:
+            slow_s = self.time_s - self._slow_since.setdefault(vid, self.time_s)
+        else:
+            self._slow_since.pop(vid, None)
+            slow_s = -1.0
         if not lane_id or lane_id.startswith(":"):
             needs = handed  # inside a junction: no lane change, nothing to decide
-        elif handed or veh.getSpeed(vid) < HAND_OVER_BELOW_MPS:
+        elif handed or slow_s >= 0.0:
             position = veh.getLanePosition(vid)
             reach = math.inf if handed else LANE_END_REACH_M
+            waited = handed or slow_s >= HAND_OVER_AFTER_S
+            own_end = self._lane_length(lane_id) + 0.1
             needs = any(
-                lane == lane_id and offset != 0 and length - position < reach
+                lane == lane_id
+                and offset != 0
+                and (length - position < reach or (waited and length < own_end))
                 for lane, length, _, offset, _, _ in veh.getBestLanes(vid)
             ) or (handed and abs(veh.getLateralLanePosition(vid)) > HANDED_BACK_WITHIN_M)
         else:
@@ -600,6 +618,7 @@ class SumoBackend:
         self._geometry.pop(vehicle_id, None)
         self._lanes_behind.pop(vehicle_id, None)
         self._handed_over.discard(vehicle_id)
+        self._slow_since.pop(vehicle_id, None)
         self._known_gone.add(vehicle_id)
 
     def route_contexts(

@@ -185,3 +185,24 @@ def test_a_car_held_on_the_wrong_lane_to_its_end_gets_the_lane_through_sumo(
     else:
         assert lanes.iloc[-1] == "WC_0"
         assert traj["speed_mps"].iloc[-1] < 0.1
+
+
+def test_members_already_in_the_target_lane_wait_for_no_gap(
+    left_turn_lane, write_scenario, tmp_path
+):
+    """The leader steers into lane 2 at once (y = -1.6 m), long before the path's lane
+    change, and the laser followers follow it there. Before the path's change each
+    member is already in its target lane, with its own follower a few metres behind:
+    counted as a gap to wait for, that follower held it at the change's start, the
+    follower waited for it, and the platoon stood for good."""
+    follower = {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                "params": {"on_lost": "route_following", "corridor_margin_rel": 1.2}}  # fmt: skip
+    summary, traj = turn_left(write_scenario, tmp_path, left_turn_lane, {
+        "members": 3, "spacing_m": 8.0, "depart_lane": 0,
+        "leader": {"type": "hold_lane:HoldLane", "params": {"hold_y_m": -1.6}},
+        "follower": follower,
+    })  # fmt: skip
+    assert summary["collisions"] == 0
+    for vid in ("p.0", "p.1", "p.2"):
+        rows = traj[traj["vehicle_id"] == vid]
+        assert rows["lane_id"].iloc[-1] == "CN_0", vid

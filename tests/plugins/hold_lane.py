@@ -1,6 +1,6 @@
 """A test controller that ignores its route's lane change for a while: it drives at a
-fixed speed and keeps the y coordinate it started at (for roads along +x) until its
-front bumper has come `hold_until_s` along its route, then steers onto the route path
+fixed speed and keeps the y coordinate it started at, or `hold_y_m` (for roads along +x),
+until its front bumper has come `hold_until_s` along its route, then steers onto the route path
 (heading and offset fed back, as `weave.Weave`). Loaded by scenarios as
 `hold_lane:HoldLane` (the tests put this folder on sys.path)."""
 
@@ -17,6 +17,7 @@ from platoon_sumo.control import Command, Observation
 class HoldLaneParams:
     speed_mps: float = 8.0
     hold_until_s: float = 1000.0
+    hold_y_m: float | None = None
     heading_gain_1ps: float = 1.5
     offset_gain_1pms: float = 0.15
 
@@ -37,7 +38,7 @@ class HoldLane:
         s_m, lateral_m = obs.path.project_sl(obs.x_m, obs.y_m, self._s_m, 20.0)
         self._s_m = s_m
         if self._y0_m is None:
-            self._y0_m = obs.y_m
+            self._y0_m = obs.y_m if p.hold_y_m is None else p.hold_y_m
         front_s_m = s_m + obs.front_offset_m
         wanted_m = 0.0
         if front_s_m < p.hold_until_s:  # the start's y, as an offset from the path
