@@ -13,6 +13,7 @@ from shapely.geometry import Polygon
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import corridor_intrusions, empty_outputs
+from platoon_sumo.loop.obstacles import crosses_before_arrival
 from platoon_sumo.path import RoutePath
 
 
@@ -95,3 +96,18 @@ def _grazing(samples, half_width, rect) -> bool:
     return min(p.distance(polygon) for p in corridor) < 1e-6 or any(
         0 < p.intersection(polygon).area < 1e-6 for p in corridor
     )
+
+
+def test_a_car_crossing_ahead_is_no_obstacle_if_it_has_left_before_arrival():
+    # 10 m ahead at 5 m/s: 2 s to get there; a 4.5 x 1.8 m car crossing at right angles
+    # at 10 m/s clears a 2.2 m corridor in 0.67 s (and braking at 4.5 m/s² it would
+    # still cross 11 m); standing, or at 1 m/s (6.7 s), it is in the way; one driving
+    # along the corridor never clears it
+    assert crosses_before_arrival(10.0, 5.0, 2.2, 10.0, 0.0, 4.5, 1.8)
+    assert not crosses_before_arrival(10.0, 5.0, 2.2, 0.0, 0.0, 4.5, 1.8)
+    assert not crosses_before_arrival(10.0, 5.0, 2.2, 1.0, 0.0, 4.5, 1.8)
+    assert not crosses_before_arrival(10.0, 5.0, 2.2, 10.0, 1.0, 4.5, 1.8)
+    # standing still, this vehicle lets every crossing car pass that cannot stop in the way
+    assert crosses_before_arrival(10.0, 0.0, 2.2, 8.0, 0.0, 4.5, 1.8)
+    # at 5 m/s sideways a crossing car could still stop inside the corridor (2.8 m)
+    assert not crosses_before_arrival(10.0, 0.0, 2.2, 5.0, 0.0, 4.5, 1.8)

@@ -6,6 +6,8 @@ brake and the route-following controller (as SUMO's leader is)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -21,6 +23,9 @@ FloatArray = NDArray[np.float64]
 CORRIDOR_MARGIN_M = 0.2
 #: Longest slice of the corridor [m] (shorter for narrow vehicles: half their corridor).
 SLICE_M = 0.5
+#: A crossing vehicle is assumed able to brake this hard [m/s²] (SUMO's default
+#: deceleration of passenger cars).
+CROSSING_DECEL_MPS2 = 4.5
 #: The corridor is a comfortable stop from the current speed (the supervisor's
 #: `comfort_decel_mps2`) long, plus this many seconds of driving and this many metres.
 LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
@@ -92,7 +97,8 @@ class ObstaclesAhead:
         who, rect, gap, along = (a[:count] for a in self._outputs)
         network = ctx.run.plan.network
         for k in np.lexsort((rect, gap, who)).tolist():  # per member, nearest first
-            m = members[who[k]]
+            j = int(who[k])
+            m = members[j]
             if m.obstacle_ahead is not None:
                 continue
             i = int(rect[k])
@@ -100,7 +106,39 @@ class ObstaclesAhead:
             leader = m.vehicle_ahead
             if leader is not None and leader.vehicle_id == other:
                 continue  # SUMO's leader: its gap is exact
-            if not network.same_level(world.lane_ids[selves[who[k]]], world.lane_ids[i]):
+            if not network.same_level(world.lane_ids[selves[j]], world.lane_ids[i]):
                 continue
-            speed_along = max(float(world.speed_mps[i]) * float(along[k]), 0.0)
+            cos = float(along[k])
+            if crosses_before_arrival(
+                float(gap[k]), float(speed[j]), 2.0 * constants[j, 4], float(world.speed_mps[i]),
+                cos, float(world.length_m[i]), float(world.width_m[i]),
+            ):  # fmt: skip
+                continue
+            speed_along = max(float(world.speed_mps[i]) * cos, 0.0)
             m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
+
+
+def crosses_before_arrival(
+    gap_m: float,
+    speed_mps: float,
+    corridor_width_m: float,
+    other_speed_mps: float,
+    cos_heading: float,
+    other_length_m: float,
+    other_width_m: float,
+) -> bool:
+    """Will a vehicle moving across the corridor have left it before this one gets
+    there, even if it starts braking now? Its sideways speed must carry its whole body
+    (as projected across the corridor) over the corridor's width before this vehicle
+    covers the gap at its current speed, and its braking distance at
+    `CROSSING_DECEL_MPS2` must be longer than that crossing. A car crossing a junction
+    ahead at speed is not a reason to brake in the junction; one standing, slow (it may
+    stop in the way) or driving along the corridor stays an obstacle."""
+    sin = math.sqrt(max(1.0 - cos_heading * cos_heading, 0.0))
+    sideways = other_speed_mps * sin
+    if sideways <= 0.0:
+        return False
+    across = corridor_width_m + other_length_m * sin + other_width_m * abs(cos_heading)
+    if sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across:
+        return False
+    return across / sideways < gap_m / max(speed_mps, 1e-3)

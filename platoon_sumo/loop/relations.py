@@ -105,9 +105,9 @@ class SafetyCheck:
             if ctx.fleet.get(a) is None:
                 a, b = b, a  # the platoon vehicle first
             i, j = world.index[a], world.index[b]
-            lanes = [
+            lanes = [  # inside a junction nobody changes lanes: no sideways rule there
                 network.lane_direction_rad(world.lane_ids[k], rects[k, 0], rects[k, 1])
-                if world.lane_ids[k]
+                if world.lane_ids[k] and not world.lane_ids[k].startswith(":")
                 else None
                 for k in (i, j)
             ]

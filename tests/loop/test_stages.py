@@ -286,8 +286,9 @@ def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(w
     found = []
     # standing p.0 looks 10 m ahead: a car beside its lane with its rear 5 m ahead,
     # 2.0 m off the centre line (apart from the 2.2 m corridor), 1.3 m (0.2 m into
-    # it), then 1.3 m off but 40 m behind; the last one heads 0.2 rad across
-    cases = ((109.5, 2.0, 0.0), (109.5, 1.3, 0.0), (60.0, 1.3, 0.0), (109.5, 1.3, 0.2))
+    # it), then 1.3 m off but 40 m behind; the last one comes the other way (its front
+    # bumper at x 105: its body reaches to x 109.5)
+    cases = ((109.5, 2.0, 0.0), (109.5, 1.3, 0.0), (60.0, 1.3, 0.0), (105.0, 1.3, np.pi))
     for x, y, yaw in cases:
         backend.vehicles["h"] = FakeVehicle(x, LANE_Y_M + y, speed_mps=3.0, yaw_rad=yaw)
         ObserveWorld()(ctx)
@@ -300,7 +301,7 @@ def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(w
     assert ahead is not None and ahead.vehicle_id == "h"
     assert 5.0 - 0.5 <= ahead.gap_m <= 5.0  # its rear at x 105 (slices of 0.5 m)
     assert ahead.speed_mps == pytest.approx(3.0)
-    assert found[3] is not None and found[3].speed_mps == pytest.approx(3.0 * np.cos(0.2))
+    assert found[3] is not None and found[3].speed_mps == 0.0  # oncoming: a standing obstacle
 
 
 def test_sumo_reports_count_each_collision_once(write_scenario):
