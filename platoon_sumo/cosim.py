@@ -6,8 +6,8 @@ A step is a fixed sequence of stages (`platoon_sumo.loop`) sharing one `StepCont
     RemovedElsewhere -> InsertDue -> Sense -> Decide -> Actuate
   SUMO's step, then (on the new world):
     SumoReports -> Gridlocks -> Arrivals -> ObserveWorld -> Departures -> ReadBack
-    -> RouteProgress -> LaneChangeGaps -> Footprints -> Predecessors -> Cohesion
-    -> SafetyCheck
+    -> RouteProgress -> LaneChangeGaps -> Footprints -> ObstaclesAhead -> Predecessors
+    -> Cohesion -> SafetyCheck
   then every hook gets the step's immutable record.
 
 docs/design.md walks through each stage. Stages exchange data through the context only,
@@ -36,6 +36,7 @@ from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Arrivals, Departures, InsertDue, RemovedElsewhere
 from platoon_sumo.loop.lane_change import LaneChangeGaps
 from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
+from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.loop.ports import Backend
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
@@ -58,7 +59,8 @@ def before_sumo_stages() -> list[Stage]:
 def after_sumo_stages() -> list[Stage]:
     return [
         SumoReports(), Gridlocks(), Arrivals(), ObserveWorld(), Departures(), ReadBack(),
-        RouteProgress(), LaneChangeGaps(), Footprints(), Predecessors(), Cohesion(),
+        RouteProgress(), LaneChangeGaps(), Footprints(), ObstaclesAhead(), Predecessors(),
+        Cohesion(),
         SafetyCheck(),
     ]  # fmt: skip
 

@@ -58,7 +58,9 @@ class Event:
     partner or WALL, SUMO's victim, the predecessor of a split or re-formation, the
     vehicle that cut in, the traffic light of a red-light violation); `detail` a short
     text (link index and state of a light, SUMO's reason for a removal, a collision's
-    type, where and how long a vehicle stood)."""
+    type, where and how long a vehicle stood, why a contact is whose fault); `at_fault`
+    the vehicle that caused a contact (collisions, wall contacts, SUMO collisions; empty
+    when undetermined, `platoon_sumo.fault`)."""
 
     time_s: float
     kind: EventKind
@@ -66,12 +68,13 @@ class Event:
     other_id: str = ""
     platoon_id: str = ""
     detail: str = ""
+    at_fault: str = ""
 
 
-EVENT_COLUMNS = ("time_s", "kind", "vehicle_id", "other_id", "platoon_id", "detail")
+EVENT_COLUMNS = ("time_s", "kind", "vehicle_id", "other_id", "platoon_id", "detail", "at_fault")
 
 
-def event_row(event: Event) -> tuple[float, str, str, str, str, str]:
+def event_row(event: Event) -> tuple[float, str, str, str, str, str, str]:
     """An event as a row of events.csv, in `EVENT_COLUMNS` order."""
     return (
         round(event.time_s, 6),
@@ -80,6 +83,7 @@ def event_row(event: Event) -> tuple[float, str, str, str, str, str]:
         event.other_id,
         event.platoon_id,
         event.detail,
+        event.at_fault,
     )
 
 

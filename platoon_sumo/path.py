@@ -124,6 +124,20 @@ class RoutePath:
         return float(np.hypot(*(self.xy_m[-1] - self.xy_m[-2])))
 
     @cached_property
+    def left_normals(self) -> FloatArray:
+        """(n, 2) unit normals to the left of the path at each point (from the chord
+        through its neighbours)."""
+        xy = self.xy_m
+        tangent = np.empty_like(xy)
+        if len(xy) < 2:
+            tangent[:] = (1.0, 0.0)
+        else:
+            tangent[1:-1] = xy[2:] - xy[:-2]
+            tangent[0], tangent[-1] = xy[1] - xy[0], xy[-1] - xy[-2]
+        norm = np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)
+        return np.column_stack([-tangent[:, 1] / norm, tangent[:, 0] / norm])
+
+    @cached_property
     def _xy(self) -> list[list[float]]:
         """``xy_m`` as nested lists: scalar look-ups without numpy indexing."""
         return self.xy_m.tolist()

@@ -241,11 +241,16 @@ def event_summary(events: list[Event], platoon_vehicle_ids: set[str]) -> dict[st
     structure = of_kind(events, EventKind.SPLIT, EventKind.REFORMATION, EventKind.CUT_IN)
     return {
         "collisions": len(contacts),
+        "collisions_platoon_at_fault": sum(e.at_fault in platoon_vehicle_ids for e in contacts),
         "collision_events": [
             dict(
                 zip(
-                    ("time_s", "vehicle_a", "vehicle_b"),
-                    (e.time_s, *sorted((e.vehicle_id, e.other_id), key=lambda v: (v == WALL, v))),
+                    ("time_s", "vehicle_a", "vehicle_b", "at_fault"),
+                    (
+                        e.time_s,
+                        *sorted((e.vehicle_id, e.other_id), key=lambda v: (v == WALL, v)),
+                        e.at_fault or None,
+                    ),
                     strict=True,
                 )
             )
@@ -255,6 +260,7 @@ def event_summary(events: list[Event], platoon_vehicle_ids: set[str]) -> dict[st
         "sumo_collisions_with_platoons": sum(
             e.vehicle_id in platoon_vehicle_ids or e.other_id in platoon_vehicle_ids for e in sumo
         ),
+        "sumo_collisions_platoon_at_fault": sum(e.at_fault in platoon_vehicle_ids for e in sumo),
         "teleports": count(events, EventKind.TELEPORT),
         "gridlocks": count(events, EventKind.GRIDLOCK),
         "gridlock_events": [

@@ -63,8 +63,9 @@ def supervise(
 
     Lights, minor links and lane changes without a gap are all stop points ahead, met
     with the same braking rule (`signal_speed_limit`); the last resort is a Krauss safe
-    speed at full braking behind the vehicle ahead (and, during a lane change, the one
-    ahead in the target lane)."""
+    speed at full braking behind the vehicle ahead, any footprint reaching into the
+    corridor ahead (`obstacle_ahead`) and, during a lane change, the vehicle ahead in the
+    target lane."""
     stops: list[tuple[SignalAhead | None, str]] = []
     if config.signals:
         stops.append((obs.signal, SIGNAL))
@@ -83,7 +84,11 @@ def supervise(
         )  # fmt: skip
         if speed > limit:
             speed, state = limit, reason
-    leaders = [obs.vehicle_ahead, change.target_leader if change is not None else None]
+    leaders = [
+        obs.vehicle_ahead,
+        obs.obstacle_ahead,
+        change.target_leader if change is not None else None,
+    ]
     for ahead in leaders if config.emergency_braking else ():
         if ahead is None:
             continue

@@ -23,8 +23,9 @@ NETWORKS = ("cross", "grid4_priority")
 SHORT = ("--end", "90", "--warmup", "10", "--stagger", "15", "--platoons", "2")
 COLUMNS = (
     "network", "nodes", "edges", "signalised", "routes", "planned", "departed", "arrived",
-    "collisions", "sumo_collisions_with_platoons", "sumo_platoon_collider",
-    "sumo_platoon_victim", "red_lights", "stuck", "gridlocks", "gridlocks_without",
+    "collisions", "collisions_platoon_at_fault", "sumo_collisions_with_platoons",
+    "sumo_platoon_collider", "sumo_platoon_victim", "red_lights", "stuck", "gridlocks",
+    "gridlocks_without",
     "teleports", "in_view_share", "human_finished", "human_finished_without",
     "human_travel_s", "human_travel_without_s", "wall_with_s", "cpu_with_s",
     "wall_without_s", "cpu_without_s", "status", "notes",
@@ -69,6 +70,7 @@ def test_every_network_gets_a_complete_row(corpus) -> None:
         assert int(row["departed"]) > 0
         # counted (what they are is the package's business, not the harness's)
         assert int(row["collisions"]) >= 0 and int(row["red_lights"]) >= 0
+        assert 0 <= int(row["collisions_platoon_at_fault"]) <= int(row["collisions"])
         assert 0.0 <= float(row["in_view_share"]) <= 1.0
         assert int(row["nodes"]) > 0 and int(row["edges"]) > 0
         # the comparison without platoons was run and read

@@ -48,13 +48,13 @@ on every run):
 One table row per network (markdown and CSV in the work folder; `--doc` also rewrites
 the block between `<!-- robustness -->` and `<!-- /robustness -->` in
 docs/real_networks.md): size, platoon routes, platoon vehicles departed / arrived,
-footprint collisions (time and pair) and SUMO's collision reports with a platoon car
-(which side SUMO calls the collider), red-light violations, platoon cars standing still
-at the end (for `--gridlock-after` s, where, and whether before a red light), gridlock
-events with and without platoons, teleports, the followers' predecessor-in-view share,
-human trips finished and their mean travel time with and without platoons, wall and CPU
-seconds of both runs, and a status (`ok`, or what failed with the first line of its
-error).
+footprint collisions (time, pair and the vehicle at fault, `platoon_sumo.fault`) and
+SUMO's collision reports with a platoon car (which side SUMO calls the collider),
+red-light violations, platoon cars standing still at the end (for `--gridlock-after`
+s, where, and whether before a red light), gridlock events with and without platoons,
+teleports, the followers' predecessor-in-view share, human trips finished and their mean
+travel time with and without platoons, wall and CPU seconds of both runs, and a status
+(`ok`, or what failed with the first line of its error).
 
 Usage::
 
@@ -270,6 +270,7 @@ class Row:
     departed: int | None = None
     arrived: int | None = None
     collisions: int | None = None
+    collisions_platoon_at_fault: int | None = None
     collision_details: str = ""
     sumo_collisions_with_platoons: int | None = None
     sumo_platoon_collider: int | None = None
@@ -798,7 +799,8 @@ def collision_events(path: Path, platoon_ids: set[str]) -> tuple[list[str], int,
         for row in csv.DictReader(f):
             kind, a, b = row.get("kind"), row.get("vehicle_id", ""), row.get("other_id", "")
             if kind in ("collision", "wall_contact"):
-                notes.append(f"{float(row['time_s']):.0f} s {a}×{b or 'wall'}")
+                fault = row.get("at_fault") or "undetermined"
+                notes.append(f"{float(row['time_s']):.0f} s {a}×{b or 'wall'}, fault {fault}")
             elif kind == "sumo_collision":
                 collider += ours(a)
                 victim += ours(b)
@@ -926,6 +928,7 @@ def with_results(row: Row, cosim: RunOutcome, bare: RunOutcome) -> Row:
             departed=pv["departed"],
             arrived=pv["arrived"],
             collisions=s["collisions"],
+            collisions_platoon_at_fault=s.get("collisions_platoon_at_fault"),
             collision_details=shorten(cosim.collision_notes),
             sumo_collisions_with_platoons=s["sumo_collisions_with_platoons"],
             sumo_platoon_collider=cosim.sumo_platoon_collider,
@@ -1006,7 +1009,8 @@ def cell(text: str) -> str:
 def markdown_table(rows: Sequence[Row]) -> list[str]:
     lines = [
         "| network | nodes / edges / signalised | platoon routes: km / junctions / turns / "
-        "signalised | platoon cars departed / arrived (of) | footprint collisions | SUMO "
+        "signalised | platoon cars departed / arrived (of) | footprint collisions (platoon car "
+        "at fault) | SUMO "
         "collisions with a platoon car (platoon collider / victim) | red lights | platoon cars "
         "stuck at the end | gridlocks with / without platoons | teleports | predecessor in view "
         "| humans finished with / without | human mean travel time with / without [s] "
@@ -1014,8 +1018,8 @@ def markdown_table(rows: Sequence[Row]) -> list[str]:
         "|---|---|---|---|---|---|---:|---|---|---:|---:|---|---|---|---|---|",
     ]
     for r in rows:
-        collisions = fmt(r.collisions) + (
-            f" ({r.collision_details})" if r.collision_details else ""
+        collisions = f"{fmt(r.collisions)} ({fmt(r.collisions_platoon_at_fault)})" + (
+            f": {r.collision_details}" if r.collision_details else ""
         )
         sumo_col = "—"
         if r.sumo_collisions_with_platoons is not None:
@@ -1203,7 +1207,8 @@ def main(argv: list[str] | None = None) -> int:
         (work / source.name / "row.json").write_text(json.dumps(asdict(row), indent=2) + "\n")
         print(
             f"[{k}/{len(chosen)}] {source.name}: {row.status}; platoon cars "
-            f"{fmt(row.arrived)}/{fmt(row.departed)} arrived, {fmt(row.collisions)} collisions, "
+            f"{fmt(row.arrived)}/{fmt(row.departed)} arrived, {fmt(row.collisions)} collisions "
+            f"({fmt(row.collisions_platoon_at_fault)} platoon at fault), "
             f"{fmt(row.red_lights)} red lights, {fmt(row.stuck)} stuck, gridlocks "
             f"{pair(row.gridlocks, row.gridlocks_without)}, "
             f"{row.wall_with_s + row.wall_without_s:.0f} s wall",

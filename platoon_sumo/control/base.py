@@ -52,6 +52,10 @@ class Observation:
     vehicle_ahead: VehicleAhead | None = None
     """Nearest vehicle ahead on the route lanes (the traffic picture a car's ADAS has);
     laser-only followers ignore it and use `scan`."""
+    obstacle_ahead: VehicleAhead | None = None
+    """Nearest other vehicle whose footprint reaches into the corridor the vehicle is
+    about to drive through, on any lane (a car waiting in a junction with its corner in
+    this lane, a car crossing), SUMO's leader left out; its speed along the corridor."""
     scan: LaserScan | None = None
     """The latest scan of the vehicle's laser (`sensors["laser"]`), or None."""
     sensors: Mapping[str, Any] = dataclasses.field(default_factory=dict)

@@ -106,10 +106,11 @@ class RouteFollowing:
             self._path_arrays = path.kernel_arrays
 
     def step(self, observation: Observation) -> Command:
-        ahead = observation.vehicle_ahead
-        if ahead is None:
-            return self._step(observation, math.inf)
-        limit = safe_following_speed(ahead.gap_m, ahead.speed_mps, *self._ahead_args)
+        limit = math.inf
+        for ahead in (observation.vehicle_ahead, observation.obstacle_ahead):
+            if ahead is not None:
+                gap, speed = ahead.gap_m, ahead.speed_mps
+                limit = min(limit, safe_following_speed(gap, speed, *self._ahead_args))
         return self._step(observation, limit)
 
     def _step(self, obs: Observation, ahead_limit_mps: float) -> Command:

@@ -77,14 +77,19 @@ class StepContext:
         return self.run.dt_s
 
     def emit(
-        self, kind: EventKind, member: Member | str, other: str = "", detail: str = ""
+        self,
+        kind: EventKind,
+        member: Member | str,
+        other: str = "",
+        detail: str = "",
+        at_fault: str = "",
     ) -> None:
         if isinstance(member, Member):
             vid, pid = member.id, member.platoon_id
         else:
             vid, pid = member, ""
         # the backend's clock: stages after SUMO's step emit before the new world is read
-        self.events.append(Event(self.backend.time_s, kind, vid, other, pid, detail))
+        self.events.append(Event(self.backend.time_s, kind, vid, other, pid, detail, at_fault))
 
     def remove(self, member: Member, arrived: bool, reason: str = "") -> None:
         """The one way a platoon vehicle leaves the run before SUMO lets it arrive."""

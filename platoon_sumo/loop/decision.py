@@ -36,6 +36,7 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
         link_ahead=m.link_ahead,
         lane_change=m.lane_change,
         vehicle_ahead=m.vehicle_ahead,
+        obstacle_ahead=m.obstacle_ahead,
         scan=scan if isinstance(scan, LaserScan) else None,
         sensors=dict(m.sensors),
     )

@@ -77,6 +77,8 @@ class Member:
     link_ahead: LinkAhead | None = None
     lane_change: LaneChangeAhead | None = None
     vehicle_ahead: VehicleAhead | None = None
+    obstacle_ahead: VehicleAhead | None = None
+    """Nearest footprint reaching into the corridor ahead (`loop.obstacles`)."""
     sensors: dict[str, Any] = field(default_factory=dict)
     """Latest message of each sensor, by name."""
     last_sensed_s: dict[str, float] = field(default_factory=dict)

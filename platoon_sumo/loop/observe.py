@@ -28,7 +28,7 @@ class SumoReports:
             ctx.emit(EventKind.TELEPORT, vid)
         pairs = {(a, b): kind for a, b, kind in sorted(ctx.backend.sumo_collisions())}
         for a, b in self._contacts.update(pairs):
-            ctx.emit(EventKind.SUMO_COLLISION, a, other=b, detail=pairs[(a, b)])
+            ctx.emit(EventKind.SUMO_COLLISION, a, other=b, detail=pairs[(a, b)], at_fault=a)
 
 
 class Gridlocks:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from platoon_sumo.events import WALL, EventKind, Onset
+from platoon_sumo.fault import contact_fault
 from platoon_sumo.geometry import overlapping_pairs, rectangles_crossing_segments
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids
@@ -74,7 +75,8 @@ class Cohesion:
 class SafetyCheck:
     """Footprint overlaps of pairs involving a platoon vehicle (SUMO's own check is per
     lane) on roads that can touch (not a bridge over the other), and platoon vehicles
-    crossing walls; each contact counts once, when it begins."""
+    crossing walls; each contact counts once, when it begins, with the vehicle at fault
+    (`platoon_sumo.fault`)."""
 
     def __init__(self) -> None:
         self._contacts: Onset[tuple[str, str]] = Onset()
@@ -97,11 +99,22 @@ class SafetyCheck:
             hits = rectangles_crossing_segments(rects[subjects], walls)
             now |= {(world.ids[subjects[i]], WALL) for i in np.unique(hits[:, 0])}
         for a, b in self._contacts.update(now):
-            if b == WALL:
-                ctx.emit(EventKind.WALL_CONTACT, ctx.fleet.get(a) or a, other=WALL)
+            if b == WALL:  # walls do not move: the vehicle ran into it
+                ctx.emit(EventKind.WALL_CONTACT, ctx.fleet.get(a) or a, other=WALL, at_fault=a)
                 continue
-            first = ctx.fleet.get(a)
-            if first is not None:
-                ctx.emit(EventKind.COLLISION, first, other=b)
-            else:
-                ctx.emit(EventKind.COLLISION, ctx.fleet.get(b) or b, other=a)
+            if ctx.fleet.get(a) is None:
+                a, b = b, a  # the platoon vehicle first
+            i, j = world.index[a], world.index[b]
+            lanes = [  # inside a junction nobody changes lanes: no sideways rule there
+                network.lane_direction_rad(world.lane_ids[k], rects[k, 0], rects[k, 1])
+                if world.lane_ids[k] and not world.lane_ids[k].startswith(":")
+                else None
+                for k in (i, j)
+            ]
+            fault = contact_fault(
+                rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], *lanes
+            )
+            ctx.emit(
+                EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
+                at_fault=(a, b)[fault.at_fault] if fault.at_fault is not None else "",
+            )  # fmt: skip

@@ -61,7 +61,7 @@ def read_events(table: pd.DataFrame) -> list[Event]:
     text = table.astype(object).where(table.notna(), "")
     return [
         Event(float(r.time_s), EventKind(r.kind), str(r.vehicle_id), str(r.other_id),
-              str(r.platoon_id), str(r.detail))
+              str(r.platoon_id), str(r.detail), str(getattr(r, "at_fault", "")))
         for r in text.itertuples(index=False)
     ]  # fmt: skip
 

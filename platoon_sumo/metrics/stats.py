@@ -76,6 +76,7 @@ class VehicleStats:
     row: int
     emergency_brakings: int = 0
     collisions: int = 0
+    collisions_at_fault: int = 0
     red_light_violations: int = 0
     cut_ins: int = 0
 
@@ -253,6 +254,8 @@ class RunStats:
                 for vid in (e.vehicle_id, e.other_id):
                     if vid in self.vehicles:
                         self.vehicles[vid].collisions += 1
+                if e.at_fault in self.vehicles:
+                    self.vehicles[e.at_fault].collisions_at_fault += 1
                 continue
             v = self.vehicles.get(e.vehicle_id)
             if kind is EventKind.SPLIT:
@@ -321,6 +324,7 @@ class RunStats:
             "cut_ins": v.cut_ins,
             "emergency_brakings": v.emergency_brakings,
             "collisions": v.collisions,
+            "collisions_at_fault": v.collisions_at_fault,
             "red_light_violations": v.red_light_violations,
         }
 
@@ -424,6 +428,7 @@ def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str,
         "splits": p.splits,
         "cut_ins": sum(m["cut_ins"] for m in members),
         "collisions": sum(m["collisions"] for m in members),
+        "collisions_at_fault": sum(m["collisions_at_fault"] for m in members),
         "emergency_brakings": sum(m["emergency_brakings"] for m in members),
         "red_light_violations": sum(m["red_light_violations"] for m in members),
     }

@@ -74,6 +74,22 @@ class Network:
         """(k, 2) centre-line of a lane, internal junction lanes included."""
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
 
+    def lane_direction_rad(self, lane_id: str, x_m: float, y_m: float) -> float | None:
+        """Direction [rad] of the lane's centre-line segment nearest to (x, y); None for an
+        unknown lane."""
+        try:
+            shape = self.lane_shape(lane_id)
+        except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
+            return None
+        if len(shape) < 2:
+            return None
+        a, d = shape[:-1], np.diff(shape, axis=0)
+        length2 = np.maximum((d * d).sum(axis=1), 1e-12)
+        t = np.clip(((np.array([x_m, y_m]) - a) * d).sum(axis=1) / length2, 0.0, 1.0)
+        nearest = a + t[:, None] * d
+        k = int(np.argmin(np.hypot(*(nearest - (x_m, y_m)).T)))
+        return float(np.arctan2(d[k, 1], d[k, 0]))
+
     def road_area(self) -> BaseGeometry:
         """Union of every lane's footprint and every junction's shape: where vehicles drive."""
         parts = [Polygon(n.getShape()) for n in self._net.getNodes() if len(n.getShape()) >= 3]

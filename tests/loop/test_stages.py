@@ -19,12 +19,13 @@ from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepH
 from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Departures, InsertDue, RemovedElsewhere
 from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
+from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
 from platoon_sumo.runner import load_plan
 from platoon_sumo.scenario import RunPlan
-from tests.fakes import LANE_Y_M, FakeBackend
+from tests.fakes import LANE_Y_M, FakeBackend, FakeVehicle
 from tests.helpers import REPO
 
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
@@ -276,6 +277,31 @@ def test_safety_check_counts_a_contact_once_when_it_begins(write_scenario):
         kinds.append([(e.kind, e.vehicle_id, e.other_id) for e in ctx.events])
     hit = [(EventKind.COLLISION, "p.0", "h")]
     assert kinds == [[], hit, [], [], hit]
+
+
+def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)  # p.0's front bumper at x 100, on the lane's centre line
+    found = []
+    # standing p.0 looks 10 m ahead: a car beside its lane with its rear 5 m ahead,
+    # 2.0 m off the centre line (apart from the 2.2 m corridor), 1.3 m (0.2 m into
+    # it), then 1.3 m off but 40 m behind; the last one comes the other way (its front
+    # bumper at x 105: its body reaches to x 109.5)
+    cases = ((109.5, 2.0, 0.0), (109.5, 1.3, 0.0), (60.0, 1.3, 0.0), (105.0, 1.3, np.pi))
+    for x, y, yaw in cases:
+        backend.vehicles["h"] = FakeVehicle(x, LANE_Y_M + y, speed_mps=3.0, yaw_rad=yaw)
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        ObstaclesAhead()(ctx)
+        found.append(ctx.fleet.get("p.0").obstacle_ahead)
+    assert found[0] is None and found[2] is None
+    ahead = found[1]
+    assert ahead is not None and ahead.vehicle_id == "h"
+    assert 5.0 - 0.5 <= ahead.gap_m <= 5.0  # its rear at x 105 (slices of 0.5 m)
+    assert ahead.speed_mps == pytest.approx(3.0)
+    assert found[3] is not None and found[3].speed_mps == 0.0  # oncoming: a standing obstacle
 
 
 def test_sumo_reports_count_each_collision_once(write_scenario):

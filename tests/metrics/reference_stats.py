@@ -132,6 +132,7 @@ class VehicleStats:
     has_predecessor: bool = False
     emergency_brakings: int = 0
     collisions: int = 0
+    collisions_at_fault: int = 0
     red_light_violations: int = 0
     cut_ins: int = 0
     _previous_gap: float | None = None
@@ -164,6 +165,7 @@ class VehicleStats:
             "cut_ins": self.cut_ins,
             "emergency_brakings": self.emergency_brakings,
             "collisions": self.collisions,
+            "collisions_at_fault": self.collisions_at_fault,
             "red_light_violations": self.red_light_violations,
         }
         return out
@@ -306,6 +308,8 @@ class RunStats:
                 for vid in (e.vehicle_id, e.other_id):
                     if vid in self.vehicles:
                         self.vehicles[vid].collisions += 1
+                if e.at_fault in self.vehicles:
+                    self.vehicles[e.at_fault].collisions_at_fault += 1
                 continue
             v = self.vehicles.get(e.vehicle_id)
             if kind is EventKind.SPLIT:

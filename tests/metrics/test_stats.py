@@ -92,8 +92,8 @@ def test_metrics_window_and_event_counts():
     stats.add_events([
         Event(0.1, EventKind.EMERGENCY_BRAKING, "p.1", platoon_id="p"),
         Event(3.0, EventKind.EMERGENCY_BRAKING, "p.1", platoon_id="p"),
-        Event(3.2, EventKind.COLLISION, "p.1", "bg7", "p"),
-        Event(3.3, EventKind.WALL_CONTACT, "p.2", WALL, "p"),
+        Event(3.2, EventKind.COLLISION, "p.1", "bg7", "p", at_fault="bg7"),
+        Event(3.3, EventKind.WALL_CONTACT, "p.2", WALL, "p", at_fault="p.2"),
         Event(3.4, EventKind.RED_LIGHT, "p.2", "tls", "p", "link 3 r"),
         Event(3.5, EventKind.CUT_IN, "p.2", "bg1", "p"),
         Event(3.6, EventKind.SPLIT, "p.2", "p.1", "p"),
@@ -103,20 +103,30 @@ def test_metrics_window_and_event_counts():
     s = {v["vehicle_id"]: v for v in stats.vehicle_summaries()}
     assert s["p.1"]["emergency_brakings"] == 2  # events count over the whole run
     assert s["p.1"]["collisions"] == 1 and s["p.2"]["collisions"] == 1
+    assert s["p.1"]["collisions_at_fault"] == 0 and s["p.2"]["collisions_at_fault"] == 1
     assert s["p.2"]["red_light_violations"] == 1 and s["p.1"]["red_light_violations"] == 0
     assert s["p.2"]["cut_ins"] == 1 and s["p.1"]["cut_ins"] == 0
     (platoon,) = stats.platoon_summaries()
     assert platoon["splits"] == 2 and platoon["cut_ins"] == 1 and platoon["collisions"] == 2
+    assert platoon["collisions_at_fault"] == 1
 
 
 def test_offline_summary_reads_the_events_table():
     events = pd.DataFrame(
-        [(0.5, "cut_in", "p.1", "bg1", "p", ""), (0.7, "split", "p.2", "p.1", "p", "")],
+        [
+            (0.5, "cut_in", "p.1", "bg1", "p", "", ""),
+            (0.7, "split", "p.2", "p.1", "p", "", ""),
+            (0.9, "collision", "p.2", "bg3", "p", "closing faster", "p.2"),
+        ],
         columns=list(EVENT_COLUMNS),
     )
     stats = summarise_trajectories(platoon_table(), events=events)
     (platoon,) = stats.platoon_summaries()
     assert platoon["splits"] == 1 and platoon["cut_ins"] == 1
+    assert platoon["collisions"] == 1 and platoon["collisions_at_fault"] == 1
+    # a table written before the at_fault column still reads
+    old = summarise_trajectories(platoon_table(), events=events.drop(columns="at_fault"))
+    assert old.platoon_summaries()[0]["collisions_at_fault"] == 0
 
 
 def test_gap_measurement_error_compares_with_the_previous_true_gap():
@@ -135,6 +145,7 @@ def test_platoon_summary_without_followers_has_no_stability_figure():
         vehicle_id="solo.0", member_index=0, accel_l2_gain=None, speed_l2_gain=None,
         max_abs_spacing_error_m=None, rms_spacing_error_m=None, min_gap_m=None, min_ttc_s=None,
         rms_accel_mps2=0.3, rms_jerk_mps3=1.0, max_lateral_deviation_m=None, cut_ins=0,
-        collisions=0, emergency_brakings=0, red_light_violations=0)])  # fmt: skip
+        collisions=0, collisions_at_fault=0, emergency_brakings=0, red_light_violations=0,
+    )])  # fmt: skip
     assert p["max_accel_l2_gain"] is None and p["string_stable"] is None
     assert p["intact_share"] is None

@@ -89,7 +89,7 @@ def tables(draw: st.DrawFn) -> tuple[list[tuple[float, pd.DataFrame]], float, li
     start_s = draw(st.sampled_from([0.0, 0.5, 1.0]))
     kinds = [EventKind.COLLISION, EventKind.SPLIT, EventKind.CUT_IN, EventKind.RED_LIGHT,
              EventKind.EMERGENCY_BRAKING]  # fmt: skip
-    events = [Event(0.1, kind, "a.1", "a.0", "a", "") for kind in draw(st.lists(
+    events = [Event(0.1, kind, "a.1", "a.0", "a", "", "a.1") for kind in draw(st.lists(
         st.sampled_from(kinds), max_size=4))]  # fmt: skip
     return steps, start_s, events
 

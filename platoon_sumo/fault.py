@@ -1,0 +1,112 @@
+"""Who caused a contact between two vehicles, from their footprints and speeds at its
+onset: a physical attribution (who moved into whom), not a legal one (right of way is
+not judged). Used for every footprint collision the loop finds; SUMO's own collision
+reports name their collider themselves.
+
+The rules, in order (docs/metrics.md):
+
+1. **Sideways into the other's path.** A vehicle moving across its lane towards the
+   other faster than `SIDEWAYS_MPS` (a lane change, a drift, a cut-in) while the other
+   does not is at fault.
+2. **Front into side or rear.** Otherwise, when exactly one vehicle moves towards the
+   contact and has it in the front quarter of its body, that vehicle struck the other (a
+   rear-end, a car running into a crossing car's side).
+3. **Closing faster.** Otherwise, the vehicle whose velocity points more towards the
+   contact, by more than `TIE_MPS`; if neither does, nobody (``None``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from shapely.geometry import Polygon
+
+from platoon_sumo.geometry import CX, CY, LENGTH, YAW, rectangle_corners
+
+#: Speed towards the other vehicle's centre line that makes a sideways intrusion [m/s]
+#: (a lane change in SUMO's sublane model moves at about 1 m/s; tracking a lane's centre
+#: moves a few centimetres a second).
+SIDEWAYS_MPS = 0.3
+#: The other's centre within this of a vehicle's lane line through its own centre is
+#: ahead of it or behind, not beside [m].
+AHEAD_M = 0.1
+#: Closing speeds closer than this are a tie [m/s].
+TIE_MPS = 0.1
+#: A contact this far forward of the body's centre (share of half the length) is on its front.
+FRONT_SHARE = 0.5
+
+SIDEWAYS = "moved sideways into the other's path"
+FRONT = "front into the other's side or rear"
+CLOSING = "closing faster"
+
+
+@dataclass(frozen=True)
+class Fault:
+    """The vehicle at fault (0: the first, 1: the second, None: undetermined) and why."""
+
+    at_fault: int | None
+    reason: str
+    contact_x_m: float
+    contact_y_m: float
+
+
+def contact_fault(
+    rect_a: ArrayLike,
+    rect_b: ArrayLike,
+    speed_a_mps: float,
+    speed_b_mps: float,
+    lane_yaw_a_rad: float | None = None,
+    lane_yaw_b_rad: float | None = None,
+) -> Fault:
+    """Attribute the contact of two overlapping rectangles ``(cx, cy, yaw, length, width)``
+    whose vehicles move along their yaw at the given speeds, each on a lane running in
+    direction ``lane_yaw`` where it is (None: along the vehicle, no sideways motion)."""
+    rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
+    corners = rectangle_corners(rects)
+    overlap = Polygon(corners[0]).intersection(Polygon(corners[1]))
+    if overlap.is_empty or overlap.area <= 0.0:  # only touching: between the centres
+        cx, cy = 0.5 * (rects[0, CX] + rects[1, CX]), 0.5 * (rects[0, CY] + rects[1, CY])
+    else:
+        cx, cy = overlap.centroid.x, overlap.centroid.y
+    speeds = (float(speed_a_mps), float(speed_b_mps))
+    lanes = (lane_yaw_a_rad, lane_yaw_b_rad)
+    velocity = [
+        (s * math.cos(r[YAW]), s * math.sin(r[YAW])) for s, r in zip(speeds, rects, strict=True)
+    ]
+
+    def sideways(i: int) -> float:
+        """Speed of vehicle i across its lane, towards the side where the other is."""
+        lane = lanes[i]
+        if lane is None:
+            return 0.0
+        nx, ny = -math.sin(lane), math.cos(lane)  # the lane's left normal
+        j = 1 - i
+        side = (rects[j, CX] - rects[i, CX]) * nx + (rects[j, CY] - rects[i, CY]) * ny
+        if abs(side) < AHEAD_M:  # the other is straight ahead or behind: not beside
+            return 0.0
+        return math.copysign(1.0, side) * (velocity[i][0] * nx + velocity[i][1] * ny)
+
+    def closing(i: int) -> float:
+        """Speed of vehicle i towards the contact."""
+        dx, dy = cx - rects[i, CX], cy - rects[i, CY]
+        norm = math.hypot(dx, dy)
+        return (velocity[i][0] * dx + velocity[i][1] * dy) / norm if norm > 0.0 else 0.0
+
+    def struck_with_front(i: int) -> bool:
+        c, s = math.cos(rects[i, YAW]), math.sin(rects[i, YAW])
+        ahead = (cx - rects[i, CX]) * c + (cy - rects[i, CY]) * s
+        return ahead >= FRONT_SHARE * 0.5 * rects[i, LENGTH] and closing(i) > TIE_MPS
+
+    into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
+    if into[0] != into[1]:
+        return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)
+    fronts = [struck_with_front(i) for i in (0, 1)]
+    if fronts[0] != fronts[1]:
+        return Fault(0 if fronts[0] else 1, FRONT, cx, cy)
+    close = [closing(i) for i in (0, 1)]
+    if abs(close[0] - close[1]) > TIE_MPS and max(close) > 0.0:
+        return Fault(0 if close[0] > close[1] else 1, CLOSING, cx, cy)
+    return Fault(None, "undetermined", cx, cy)

@@ -1,0 +1,144 @@
+"""Obstacles ahead: for each member, the nearest vehicle whose footprint reaches into
+the corridor the member is about to drive through. SUMO's leader only covers the route's
+lanes; a car waiting inside a junction with its corner in the member's lane, or a car
+crossing its path, is on other lanes. Ground truth, for the supervisor's last-resort
+brake and the route-following controller (as SUMO's leader is)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, empty_outputs
+from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
+from platoon_sumo.path import RoutePath
+from platoon_sumo.world import VehicleAhead
+
+FloatArray = NDArray[np.float64]
+
+#: The corridor is the vehicle's width plus this on each side [m].
+CORRIDOR_MARGIN_M = 0.2
+#: Longest slice of the corridor [m] (shorter for narrow vehicles: half their corridor).
+SLICE_M = 0.5
+#: A crossing vehicle is assumed able to brake this hard [m/s²] (SUMO's default
+#: deceleration of passenger cars).
+CROSSING_DECEL_MPS2 = 4.5
+#: The corridor is a comfortable stop from the current speed (the supervisor's
+#: `comfort_decel_mps2`) long, plus this many seconds of driving and this many metres.
+LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
+
+
+class ObstaclesAhead:
+    """Each member's `obstacle_ahead`: its route path from the front bumper on, shifted
+    by its current lateral offset, `CORRIDOR_MARGIN_M` wider than the vehicle on each
+    side, `corridor_length_m` long; the nearest other footprint (on a road that can
+    touch) reaching into it, with its speed along the corridor (0 when crossing or
+    oncoming). SUMO's leader on the route lanes is not repeated here. One compiled pass
+    over all members; the route paths are stacked once (a new route adds its path)."""
+
+    def __init__(self) -> None:
+        self._outputs = empty_outputs(64)
+        self._rows: dict[tuple[int, str], tuple[float, float, float, float, float]] = {}
+        self._paths: list[RoutePath] = []
+        self._stacked: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None
+
+    def _constants(self, m: Member) -> tuple[float, float, float, float, float]:
+        """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width) of
+        a member's corridor: the same for every member of a platoon on one path."""
+        key = (id(m.path), m.platoon_id)
+        row = self._rows.get(key)
+        if row is None:
+            path, config = m.path, m.platoon.config
+            if all(p is not path for p in self._paths):
+                self._paths.append(path)  # kept alive here, so its id stays unique
+                self._stacked = None
+            index = next(k for k, p in enumerate(self._paths) if p is path)
+            hw = 0.5 * config.vehicle.width_m + CORRIDOR_MARGIN_M
+            stride = max(1, int(min(SLICE_M, hw) / path.spacing_m))
+            brake = 1.0 / (2.0 * config.supervisor.comfort_decel_mps2)
+            row = self._rows[key] = (index, brake, path.spacing_m, stride, hw)
+        return row
+
+    def __call__(self, ctx: StepContext) -> None:
+        world, rects = ctx.world, ctx.footprints
+        for m in ctx.fleet:
+            m.obstacle_ahead = None
+        members = [m for m in ctx.fleet if m.id in world.index]
+        if not members or len(world.ids) < 2:
+            return
+        table = np.empty((len(members), len(MEMBER_COLUMNS)))
+        rows = ctx.fleet.rows(members)
+        table[:, 1] = ctx.fleet.kin[rows, ROUTE_S]
+        table[:, 2] = ctx.fleet.kin[rows, LATERAL]
+        speed = np.maximum(ctx.fleet.kin[rows, SPEED], 0.0)
+        constants = np.array([self._constants(m) for m in members])
+        table[:, 0] = constants[:, 0]
+        table[:, 3] = speed * speed * constants[:, 1] + LOOK_TIME_S * speed + LOOK_EXTRA_M
+        table[:, 4:] = constants[:, 2:]
+        if self._stacked is None:
+            starts = np.zeros(len(self._paths) + 1, dtype=np.int64)
+            np.cumsum([len(p.xy_m) for p in self._paths], out=starts[1:])
+            self._stacked = (
+                np.ascontiguousarray(np.concatenate([p.xy_m for p in self._paths])),
+                np.ascontiguousarray(np.concatenate([p.left_normals for p in self._paths])),
+                starts,
+            )
+        selves = np.array([world.index[m.id] for m in members], dtype=np.int64)
+        args = (*self._stacked, table, selves, np.ascontiguousarray(rects))
+        count = corridor_intrusions(*args, *self._outputs)
+        if count > len(self._outputs[0]):
+            self._outputs = empty_outputs(2 * count)
+            count = corridor_intrusions(*args, *self._outputs)
+        if not count:
+            return
+        who, rect, gap, along = (a[:count] for a in self._outputs)
+        network = ctx.run.plan.network
+        for k in np.lexsort((rect, gap, who)).tolist():  # per member, nearest first
+            j = int(who[k])
+            m = members[j]
+            if m.obstacle_ahead is not None:
+                continue
+            i = int(rect[k])
+            other = world.ids[i]
+            leader = m.vehicle_ahead
+            if leader is not None and leader.vehicle_id == other:
+                continue  # SUMO's leader: its gap is exact
+            if not network.same_level(world.lane_ids[selves[j]], world.lane_ids[i]):
+                continue
+            cos = float(along[k])
+            if crosses_before_arrival(
+                float(gap[k]), float(speed[j]), 2.0 * constants[j, 4], float(world.speed_mps[i]),
+                cos, float(world.length_m[i]), float(world.width_m[i]),
+            ):  # fmt: skip
+                continue
+            speed_along = max(float(world.speed_mps[i]) * cos, 0.0)
+            m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
+
+
+def crosses_before_arrival(
+    gap_m: float,
+    speed_mps: float,
+    corridor_width_m: float,
+    other_speed_mps: float,
+    cos_heading: float,
+    other_length_m: float,
+    other_width_m: float,
+) -> bool:
+    """Will a vehicle moving across the corridor have left it before this one gets
+    there, even if it starts braking now? Its sideways speed must carry its whole body
+    (as projected across the corridor) over the corridor's width before this vehicle
+    covers the gap at its current speed, and its braking distance at
+    `CROSSING_DECEL_MPS2` must be longer than that crossing. A car crossing a junction
+    ahead at speed is not a reason to brake in the junction; one standing, slow (it may
+    stop in the way) or driving along the corridor stays an obstacle."""
+    sin = math.sqrt(max(1.0 - cos_heading * cos_heading, 0.0))
+    sideways = other_speed_mps * sin
+    if sideways <= 0.0:
+        return False
+    across = corridor_width_m + other_length_m * sin + other_width_m * abs(cos_heading)
+    if sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across:
+        return False
+    return across / sideways < gap_m / max(speed_mps, 1e-3)

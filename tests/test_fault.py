@@ -1,0 +1,122 @@
+"""Who is at fault in a contact (platoon_sumo.fault): the typical crashes, and the
+attribution's invariances (who caused a crash does not depend on the coordinates or on
+which vehicle is named first)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from platoon_sumo.fault import CLOSING, FRONT, SIDEWAYS, contact_fault
+from platoon_sumo.geometry import penetration_depths
+
+L, W = 4.5, 1.8
+
+
+def car(x: float, y: float, yaw: float = 0.0) -> tuple[float, float, float, float, float]:
+    return (x, y, yaw, L, W)
+
+
+def test_rear_end_is_the_follower():
+    leader, follower = car(0.0, 0.0), car(-4.3, 0.0)  # follower's front in the leader's rear
+    fault = contact_fault(leader, follower, 2.0, 9.0)
+    assert (fault.at_fault, fault.reason) == (1, FRONT)
+
+
+def test_rear_end_into_a_standing_car_is_the_mover():
+    standing, mover = car(0.0, 0.0), car(-4.3, 0.1)
+    assert contact_fault(standing, mover, 0.0, 5.0).at_fault == 1
+    assert contact_fault(mover, standing, 5.0, 0.0).at_fault == 0
+
+
+def test_cut_in_is_the_lane_changer_even_when_struck_from_behind():
+    # the cutter is ahead and to the left, heading 6 deg right into the other's lane; the
+    # straight car's front touches its rear corner
+    straight = car(0.0, 0.0)
+    cutter = car(4.0, 1.6, -math.radians(6.0))
+    fault = contact_fault(straight, cutter, 12.0, 12.0, 0.0, 0.0)  # both lanes run east
+    assert (fault.at_fault, fault.reason) == (1, SIDEWAYS)
+    # without the lanes' direction it is the car whose front touched
+    assert contact_fault(straight, cutter, 12.0, 12.0).at_fault == 0
+
+
+def test_side_swipe_is_the_drifting_car():
+    a = car(0.0, 0.0)
+    b = car(0.5, 1.7, -math.radians(4.0))  # beside, drifting right into a
+    assert contact_fault(a, b, 10.0, 10.0, 0.0, 0.0).at_fault == 1
+
+
+def test_crossing_car_hit_in_its_side_blames_the_striker():
+    crossing = car(0.0, 0.0, math.pi / 2)  # northbound, its side towards the west
+    striker = car(-3.0, 0.0, 0.0)  # eastbound, front at x=-0.75 inside the crossing car
+    fault = contact_fault(crossing, striker, 6.0, 8.0, math.pi / 2, 0.0)
+    assert (fault.at_fault, fault.reason) == (1, FRONT)
+
+
+def test_two_standing_cars_are_nobodys_fault():
+    fault = contact_fault(car(0.0, 0.0), car(-4.3, 0.0), 0.0, 0.0)
+    assert fault.at_fault is None
+
+
+def test_head_on_blames_the_faster():
+    a, b = car(0.0, 0.0), car(4.3, 0.2, math.pi)
+    fault = contact_fault(a, b, 3.0, 10.0)
+    assert (fault.at_fault, fault.reason) == (1, CLOSING)
+
+
+def _moved(rect, dx, dy, turn):
+    c, s = math.cos(turn), math.sin(turn)
+    x, y, yaw, length, width = rect
+    return (c * x - s * y + dx, s * x + c * y + dy, yaw + turn, length, width)
+
+
+scenes = st.tuples(
+    st.floats(-3.0, 3.0), st.floats(-2.0, 2.0), st.floats(-math.pi, math.pi),
+    st.floats(0.0, 15.0), st.floats(0.0, 15.0),
+    st.sampled_from([None, 0.0, 0.3, math.pi / 2, math.pi]),
+)  # fmt: skip
+
+
+@settings(max_examples=200, deadline=None)
+@given(scene=scenes, dx=st.floats(-1e3, 1e3), dy=st.floats(-1e3, 1e3), turn=st.floats(-4, 4))
+def test_attribution_is_invariant_to_naming_order_and_rigid_motion(scene, dx, dy, turn):
+    bx, by, byaw, va, vb, lane_b = scene
+    a, b = car(0.0, 0.0), car(bx, by, byaw)
+    # a contact's first step: the bodies overlap, a little
+    assume(math.hypot(bx, by) > 0.5 and penetration_depths([a], [b])[0] > 0.01)
+    base = contact_fault(a, b, va, vb, 0.0, lane_b)
+    swapped = contact_fault(b, a, vb, va, lane_b, 0.0)
+    assert swapped.at_fault == (None if base.at_fault is None else 1 - base.at_fault)
+    lane_b_moved = None if lane_b is None else lane_b + turn
+    moved = contact_fault(
+        _moved(a, dx, dy, turn), _moved(b, dx, dy, turn), va, vb, turn, lane_b_moved
+    )
+    assert moved.at_fault == base.at_fault or _near_threshold(a, b, va, vb, lane_b)
+    # the contact point moves with the scene
+    c, s = math.cos(turn), math.sin(turn)
+    expected = (c * base.contact_x_m - s * base.contact_y_m + dx,
+                s * base.contact_x_m + c * base.contact_y_m + dy)  # fmt: skip
+    assert np.allclose((moved.contact_x_m, moved.contact_y_m), expected, atol=1e-6)
+
+
+@settings(max_examples=200, deadline=None)
+@given(scene=scenes)
+def test_a_standing_vehicle_is_never_at_fault(scene):
+    bx, by, byaw, _, vb, lane_b = scene
+    assume(penetration_depths([car(0.0, 0.0)], [car(bx, by, byaw)])[0] > 0.01)
+    assert contact_fault(car(0.0, 0.0), car(bx, by, byaw), 0.0, vb, 0.0, lane_b).at_fault != 0
+
+
+def _near_threshold(a, b, va, vb, lane_b) -> bool:
+    """Rounding after a rigid motion may tip a value lying on a rule's threshold."""
+    base = contact_fault(a, b, va, vb, 0.0, lane_b).at_fault
+    nudged = [(a, b, va + e, vb) for e in (1e-6, -1e-6)] + [
+        (a, b, va, vb + e) for e in (1e-6, -1e-6)
+    ]
+    nudged += [
+        (a, (b[0] + ex, b[1] + ey, *b[2:]), va, vb) for ex in (-1e-6, 1e-6) for ey in (-1e-6, 1e-6)
+    ]
+    return any(contact_fault(*n, 0.0, lane_b).at_fault != base for n in nudged)
