@@ -34,10 +34,12 @@ LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
 class ObstaclesAhead:
     """Each member's `obstacle_ahead`: its route path from the front bumper on, shifted
     by its current lateral offset, `CORRIDOR_MARGIN_M` wider than the vehicle on each
-    side, `corridor_length_m` long; the nearest other footprint (on a road that can
-    touch) reaching into it, with its speed along the corridor (0 when crossing or
-    oncoming). SUMO's leader on the route lanes is not repeated here. One compiled pass
-    over all members; the route paths are stacked once (a new route adds its path)."""
+    side, a comfortable stop plus `LOOK_TIME_S` of driving plus `LOOK_EXTRA_M` long; the
+    nearest other footprint (on a road that can touch) reaching into it, with its speed
+    along the corridor (0 when oncoming), unless it is crossing and will have left
+    (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here.
+    One compiled pass over all members; the route paths are stacked once (a new route
+    adds its path)."""
 
     def __init__(self) -> None:
         self._outputs = empty_outputs(64)
