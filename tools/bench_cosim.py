@@ -73,7 +73,7 @@ import sys
 import tempfile
 import time
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -335,26 +335,37 @@ def data_rows(path: Path) -> int:
     return max(0, lines - 1)
 
 
-def repeated(
-    name: str, end_s: float, directory: Path, command: Callable[[], list[str]], repeat: int
-) -> Run:
-    """Run `command()` (made after `directory` is emptied) `repeat` times; keep the
-    fastest CPU and wall times and read the last run's outputs."""
-    best_cpu, best_wall = math.inf, math.inf
+@dataclass(frozen=True)
+class Job:
+    name: str
+    end_s: float
+    directory: Path
+    command: Callable[[], list[str]]
+
+
+def interleaved(jobs: Sequence[Job], repeat: int) -> list[Run]:
+    """Run every job `repeat` times, one round of all jobs after the other (so a slow
+    spell of this shared host falls on every job alike, not on one); keep each job's
+    fastest CPU and wall times and read its last run's outputs."""
+    best = [(math.inf, math.inf) for _ in jobs]
     for i in range(repeat):
-        shutil.rmtree(directory, ignore_errors=True)
-        cpu, wall = measure(command())
-        best_cpu, best_wall = min(best_cpu, cpu), min(best_wall, wall)
-        more = f" (repeat {i + 1}/{repeat})" if repeat > 1 else ""
-        print(f"  {name:<28} end {end_s:5.0f} s: CPU {cpu:8.1f} s, wall {wall:8.1f} s{more}",
-              flush=True)  # fmt: skip
-    run = Run(name, end_s, best_cpu, best_wall, directory)
-    summary = directory / "summary.json"
-    if summary.is_file():
-        run.summary = json.loads(summary.read_text(encoding="utf-8"))
-    run.sumo_mean, run.sumo_max = sumo_counts(directory)
-    run.vehicle_steps = data_rows(directory / "trajectories.csv")
-    return run
+        for k, job in enumerate(jobs):
+            shutil.rmtree(job.directory, ignore_errors=True)
+            cpu, wall = measure(job.command())
+            best[k] = (min(best[k][0], cpu), min(best[k][1], wall))
+            more = f" (round {i + 1}/{repeat})" if repeat > 1 else ""
+            print(f"  {job.name:<28} end {job.end_s:5.0f} s: CPU {cpu:8.1f} s, "
+                  f"wall {wall:8.1f} s{more}", flush=True)  # fmt: skip
+    runs = []
+    for job, (cpu, wall) in zip(jobs, best, strict=True):
+        run = Run(job.name, job.end_s, cpu, wall, job.directory)
+        summary = job.directory / "summary.json"
+        if summary.is_file():
+            run.summary = json.loads(summary.read_text(encoding="utf-8"))
+        run.sumo_mean, run.sumo_max = sumo_counts(job.directory)
+        run.vehicle_steps = data_rows(job.directory / "trajectories.csv")
+        runs.append(run)
+    return runs
 
 
 # --------------------------------------------------------------------------- report
@@ -507,7 +518,10 @@ def main(argv: list[str] | None = None) -> int:
         default=120.0,
         help="simulated seconds of the 500 case and its baselines [s]",
     )
-    parser.add_argument("--repeat", type=int, default=1, help="runs per case; the minimum counts")
+    parser.add_argument(
+        "--repeat", type=int, default=1,
+        help="rounds over the baselines and cases of each end time; the minimum counts",
+    )  # fmt: skip
     parser.add_argument("--work", help="work folder (default: a temporary one)")
     parser.add_argument("--keep", action="store_true", help="keep the results folders")
     parser.add_argument("--label", default="current", help="name of the block in the docs")
@@ -599,35 +613,33 @@ def main(argv: list[str] | None = None) -> int:
     bare: dict[float, Run] = {}
     cosim: dict[int, Run] = {}
     skipped: list[int] = []
-    for c in cases:
-        end = end_for[c]
+    # per end time: both baselines and every case with that end, in rounds (a slow
+    # spell of the shared host then falls on all of them alike)
+    for end in dict.fromkeys(end_for[c] for c in cases):
+        group = [c for c in cases if end_for[c] == end and c]
         spent_min = (time.perf_counter() - started) / 60.0
-        if args.budget_min is not None and spent_min > args.budget_min and c:
-            skipped = [x for x in cases if x >= c]
+        if args.budget_min is not None and spent_min > args.budget_min and alone:
+            skipped = [c for c in cases if end_for[c] not in alone and c]
             print(f"time budget spent ({spent_min:.0f} min): not measured: {skipped}")
             break
-        if end not in alone:
-            out = results / f"sumo_alone_{end:g}"
-            alone[end] = repeated(
-                "SUMO alone", end, out,
-                partial(sumo_alone_command, net, routes_file, out, args.seed, end),
-                args.repeat,
-            )  # fmt: skip
-            out = results / f"no_platoons_{end:g}"
-            bare[end] = repeated(
-                "no platoons", end, out,
-                partial(cli, "run", str(scenarios[c]), "--out", str(out), "--quiet",
-                        "--no-platoons", "--end", repr(end)),
-                args.repeat,
-            )  # fmt: skip
-        if c:
+        out_alone, out_bare = results / f"sumo_alone_{end:g}", results / f"no_platoons_{end:g}"
+        first = next(c for c in cases if end_for[c] == end)  # as the single runs had it
+        bare_scenario = str(scenarios[first])
+        jobs = [
+            Job("SUMO alone", end, out_alone,
+                partial(sumo_alone_command, net, routes_file, out_alone, args.seed, end)),
+            Job("no platoons", end, out_bare,
+                partial(cli, "run", bare_scenario, "--out", str(out_bare), "--quiet",
+                        "--no-platoons", "--end", repr(end))),
+        ]  # fmt: skip
+        for c in group:
             out = results / f"cosim_{c}"
-            cosim[c] = repeated(
-                f"co-sim {c} platoon vehicles", end, out,
-                partial(cli, "run", str(scenarios[c]), "--out", str(out), "--quiet",
-                        "--end", repr(end)),
-                args.repeat,
-            )  # fmt: skip
+            jobs.append(Job(f"co-sim {c} platoon vehicles", end, out,
+                            partial(cli, "run", str(scenarios[c]), "--out", str(out), "--quiet",
+                                    "--end", repr(end))))  # fmt: skip
+        runs = interleaved(jobs, args.repeat)
+        alone[end], bare[end] = runs[0], runs[1]
+        cosim.update(zip(group, runs[2:], strict=True))
 
     elapsed_min = (time.perf_counter() - started) / 60.0
     lines = [
@@ -639,7 +651,8 @@ def main(argv: list[str] | None = None) -> int:
         f"Background: {background} vehicles in the route file (seed {args.seed}; warm-up "
         f"{args.warmup:g} s at one every {args.warmup_period:g} s, then one every "
         f"{args.period:g} s; trips >= {args.min_trip:g} m); step {STEP_S:g} s; "
-        f"CPU = minimum of {args.repeat} run(s); bench took {elapsed_min:.0f} min",
+        f"CPU = minimum of {args.repeat} run(s), in rounds over the cases and their "
+        f"baselines; bench took {elapsed_min:.0f} min",
         "",
         *table(cases, skipped, alone, bare, cosim, end_for),
         "",
