@@ -5,9 +5,9 @@ reports name their collider themselves.
 
 The rules, in order (docs/metrics.md):
 
-1. **Sideways into the other's path.** A vehicle moving across its lane towards the
-   other faster than `SIDEWAYS_MPS` (a lane change, a drift, a cut-in) while the other
-   does not is at fault.
+1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
+   moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
+   drift, a cut-in) while the other does not is at fault.
 2. **Front into side or rear.** Otherwise, when exactly one vehicle moves towards the
    contact and has it in the front quarter of its body, that vehicle struck the other (a
    rear-end, a car running into a crossing car's side).
@@ -24,15 +24,16 @@ import numpy as np
 from numpy.typing import ArrayLike
 from shapely.geometry import Polygon
 
-from platoon_sumo.geometry import CX, CY, LENGTH, YAW, rectangle_corners
+from platoon_sumo.geometry import CX, CY, LENGTH, WIDTH, YAW, rectangle_corners
 
 #: Speed towards the other vehicle's centre line that makes a sideways intrusion [m/s]
 #: (a lane change in SUMO's sublane model moves at about 1 m/s; tracking a lane's centre
 #: moves a few centimetres a second).
 SIDEWAYS_MPS = 0.3
-#: The other's centre within this of a vehicle's lane line through its own centre is
-#: ahead of it or behind, not beside [m].
-AHEAD_M = 0.1
+#: Rule 1 needs the two centres at least this share of their mean width apart across
+#: the lane (at a cut-in's first contact they are nearly a full width apart; a car
+#: running into another's rear a little off-centre is not beside it).
+BESIDE_SHARE = 0.5
 #: Closing speeds closer than this are a tie [m/s].
 TIE_MPS = 0.1
 #: A contact this far forward of the body's centre (share of half the length) is on its front.
@@ -85,7 +86,8 @@ def contact_fault(
         nx, ny = -math.sin(lane), math.cos(lane)  # the lane's left normal
         j = 1 - i
         side = (rects[j, CX] - rects[i, CX]) * nx + (rects[j, CY] - rects[i, CY]) * ny
-        if abs(side) < AHEAD_M:  # the other is straight ahead or behind: not beside
+        beside = BESIDE_SHARE * 0.5 * (rects[i, WIDTH] + rects[j, WIDTH])
+        if abs(side) < beside:  # more ahead or behind than beside: not a sideways move
             return 0.0
         return math.copysign(1.0, side) * (velocity[i][0] * nx + velocity[i][1] * ny)
 

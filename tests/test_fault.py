@@ -120,3 +120,11 @@ def _near_threshold(a, b, va, vb, lane_b) -> bool:
         (a, (b[0] + ex, b[1] + ey, *b[2:]), va, vb) for ex in (-1e-6, 1e-6) for ey in (-1e-6, 1e-6)
     ]
     return any(contact_fault(*n, 0.0, lane_b).at_fault != base for n in nudged)
+
+
+def test_a_rear_end_a_little_off_centre_is_the_follower_even_with_heading_noise():
+    # at 20-30 m/s a heading 1.2 deg off the lane is 0.4 m/s sideways: the leader, 0.3 m
+    # off the follower's line, is ahead of it, not beside it
+    leader, follower = car(4.4, 0.3, -0.021), car(0.0, 0.0)
+    fault = contact_fault(follower, leader, 30.0, 20.0, 0.0, 0.0)
+    assert (fault.at_fault, fault.reason) == (0, FRONT)

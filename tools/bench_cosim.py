@@ -528,7 +528,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--doc", default=str(DOC), help="markdown file to write the table into")
     parser.add_argument("--no-doc", action="store_true", help="print the table only")
     parser.add_argument(
-        "--budget-min", type=float, help="skip the cases not started after this many minutes"
+        "--budget-min",
+        type=float,
+        help="skip the end times (with their cases) not started after this many minutes; "
+        "checked between end times, so it cannot stop the cases of one end time",
     )
     parser.add_argument("--seed", type=int, default=42, help="SUMO, demand and route seed")
     parser.add_argument("--grid", type=int, default=10, help="junctions per side")

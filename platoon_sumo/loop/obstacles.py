@@ -108,7 +108,11 @@ class ObstaclesAhead:
             leader = m.vehicle_ahead
             if leader is not None and leader.vehicle_id == other:
                 continue  # SUMO's leader: its gap is exact
-            if not network.same_level(world.lane_ids[selves[j]], world.lane_ids[i]):
+            # a bridge over the path is no obstacle: compare with the route's lane there
+            path = m.path
+            at = min(int((table[j, 1] + gap[k]) / path.spacing_m), len(path.lane_index) - 1)
+            route_lane = path.lane_ids[int(path.lane_index[max(at, 0)])]
+            if not network.same_level(route_lane, world.lane_ids[i]):
                 continue
             cos = float(along[k])
             if crosses_before_arrival(

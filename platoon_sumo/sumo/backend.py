@@ -477,7 +477,7 @@ class SumoBackend:
 
         A slow vehicle on a lane from which its route cannot go on within
         `LANE_END_REACH_M` (SUMO's best lanes) is handed to SUMO's own lane change
-        instead (`_hand_over`) until it is on a lane that continues or drives again."""
+        instead (`_hand_over`) until it is on a lane that continues, near its centre."""
         veh = libsumo.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps.tolist(), strict=True):
             if self._hand_over(vid):
