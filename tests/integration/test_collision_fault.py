@@ -11,7 +11,7 @@ import libsumo
 import pandas as pd
 import pytest
 
-from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
+from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
 
@@ -19,7 +19,7 @@ ROUTE = ["left1A1", "A1B1", "B1C1", "C1right1"]
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
 
 
-class RamFromBehind:
+class RamFromBehind(StepHook):
     """At `at_s`, a human-driven car enters the platoon's lane behind it at 14 m/s with
     every one of SUMO's safety checks off (speed mode 0), and keeps going."""
 
@@ -28,12 +28,6 @@ class RamFromBehind:
     def __init__(self, at_s: float):
         self.at_s = at_s
         self.added = False
-
-    def on_start(self, run: RunContext) -> None:
-        pass
-
-    def on_end(self, outcome: RunOutcome) -> None:
-        pass
 
     def on_step(self, record: StepRecord) -> None:
         if self.added or record.time_s < self.at_s:

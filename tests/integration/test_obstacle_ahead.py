@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 import platoon_sumo.cosim as cosim
-from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
+from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
@@ -24,18 +24,12 @@ BLOCKER = "blocker"
 FRONT_X, FRONT_Y, WIDTH_M = 200.0, 297.2, 3.0
 
 
-class Blocker:
+class Blocker(StepHook):
     """A car standing at (FRONT_X, FRONT_Y) from `from_s` to `until_s`, then gone."""
 
     def __init__(self, from_s: float, until_s: float):
         self.from_s, self.until_s = from_s, until_s
         self.state = "waiting"
-
-    def on_start(self, run: RunContext) -> None:
-        pass
-
-    def on_end(self, outcome: RunOutcome) -> None:
-        pass
 
     def on_step(self, record: StepRecord) -> None:
         if self.state == "waiting" and record.time_s >= self.from_s:
