@@ -7,16 +7,21 @@ a simulation failure ends with one line and exit code 1; never a traceback.
 from __future__ import annotations
 
 import argparse
+import math
+import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from types import FrameType
 from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
 import platoon_sumo
-from platoon_sumo.errors import PlatoonSumoError, ScenarioError
+from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated
+from platoon_sumo.results import FolderError
 
 if TYPE_CHECKING:
     from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
@@ -117,7 +122,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
     _network_warnings(plan)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
-    result = run(plan, out_dir=args.out, hooks=hooks)
+    result = run(plan, out_dir=args.out, hooks=hooks, force=args.force)
     s = result.summary
     depart = {p.config.id: p.config.depart_s for p in plan.platoons}
     for pid in s.get("platoons_not_inserted", []):
@@ -185,6 +190,13 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     from platoon_sumo.runner import load_plan, run
     from platoon_sumo.sensors.plot import plot_scan
 
+    sim = load_plan(args.scenario).scenario.simulation
+    if not (math.isfinite(args.at) and sim.begin_s < args.at <= sim.end_s):
+        raise ScenarioError(
+            args.scenario, "--at", f"{args.at:g} s is not a time of this run",
+            f"give a time after simulation.begin_s = {sim.begin_s:g} s, up to "
+            f"simulation.end_s = {sim.end_s:g} s",
+        )  # fmt: skip
     plan = load_plan(args.scenario, end_s=args.at)
     grabber = ScanGrabber(args.vehicle)
     with tempfile.TemporaryDirectory() as tmp:
@@ -214,10 +226,14 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warn(message: str) -> None:
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from platoon_sumo.report import write_report
 
-    path = write_report(args.results, args.out)
+    path = write_report(args.results, args.out, warn=_warn)
     print(f"report written to {path}")
     return 0
 
@@ -225,7 +241,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_compare(args: argparse.Namespace) -> int:
     from platoon_sumo.report import write_comparison
 
-    path = write_comparison(args.results, args.out)
+    path = write_comparison(args.results, args.out, warn=_warn)
     print(f"comparison written to {path}")
     return 0
 
@@ -243,6 +259,11 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument("--end", type=float, help="override simulation.end_s [s]")
     p_run.add_argument("--seed", type=int, help="override simulation.seed")
     p_run.add_argument("--quiet", action="store_true", help="no progress line")
+    p_run.add_argument(
+        "--force", action="store_true",
+        help="replace earlier results of ours in --out even if edited or unfinished "
+        "(never files platoon-sumo did not write)",
+    )  # fmt: skip
     p_run.add_argument(
         "--no-platoons", action="store_true",
         help="run the same traffic without platoons (baseline for network effects)",
@@ -268,19 +289,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _on_sigterm(signum: int, frame: FrameType | None) -> None:
+    raise Terminated()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
         return int(args.func(args))
-    except ScenarioError as exc:
+    except (ScenarioError, FolderError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except PlatoonSumoError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated)
+        print(f"interrupted ({'SIGTERM' if terminated else 'Ctrl-C'})", file=sys.stderr)
+        return 143 if terminated else 130
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,11 @@ class ScenarioError(PlatoonSumoError):
         super().__init__(text)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a cluster ending the job, `kill`), raised where the program is, so a run
+    ends as on Ctrl-C: what it wrote is kept and marked interrupted."""
+
+
 class SumoError(PlatoonSumoError):
     """SUMO refused something (start, insertion, a move); carries SUMO's own words."""
 

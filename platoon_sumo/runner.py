@@ -11,8 +11,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import platform
-import shutil
 import time
+import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,17 +40,19 @@ from platoon_sumo.metrics.sumo_outputs import (
 )
 from platoon_sumo.metrics.tables import by_id, overall, summary_tables, write_table
 from platoon_sumo.recorder import EventWriter, ScanSnapshot, TrajectoryRecorder
+from platoon_sumo.results import COMPLETE, FAILED, INTERRUPTED, claim
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
 from platoon_sumo.sumo.shapes import read_wall_segments
 from platoon_sumo.traffic import write_traffic_inputs
 
-#: Everything a run writes at the top of its folder; removed first so nothing stale remains.
-OUTPUT_FILES = (
+#: Every name a run writes at the top of its folder (its report included): a file of the
+#: user's under one of these names keeps the run out of the folder.
+OUTPUT_NAMES = frozenset({
     "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
     "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
-    EDGEDATA_FILE, PERSONINFO_FILE, "scan_snapshot.npz", "events.csv",
-)  # fmt: skip
+    EDGEDATA_FILE, PERSONINFO_FILE, "scan_snapshot.npz", "events.csv", "inputs", "report",
+})  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -98,21 +100,30 @@ def run(
     plan: RunPlan,
     out_dir: str | Path | None = None,
     hooks: Sequence[StepHook] = (),
+    force: bool = False,
 ) -> RunResult:
+    """Run `plan` into a results folder that is new, empty or holds our earlier results
+    (`results.claim`; `force` replaces earlier results that were edited or never
+    finished). A failed or interrupted run keeps what it wrote, with FAILED.txt (the
+    reason and its traceback) and its manifest saying so."""
     sc = plan.scenario
     directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name).resolve()
-    directory.mkdir(parents=True, exist_ok=True)
-    for stale in OUTPUT_FILES:
-        (directory / stale).unlink(missing_ok=True)
-    shutil.rmtree(directory / "inputs", ignore_errors=True)
-    (directory / "scenario.yaml").write_text(
-        plan.source.reproducible_yaml(sc.simulation), encoding="utf-8"
-    )
+    folder = claim(directory, "run", OUTPUT_NAMES, force)
     try:
-        return _run(plan, directory, hooks)
+        (directory / "scenario.yaml").write_text(
+            plan.source.reproducible_yaml(sc.simulation), encoding="utf-8"
+        )
+        result = _run(plan, directory, hooks)
     except BaseException as exc:
-        (directory / "FAILED.txt").write_text(f"{type(exc).__name__}: {exc}\n")
+        reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+        trace = "".join(traceback.format_exception(exc))
+        (directory / "FAILED.txt").write_text(
+            f"{reason}: {type(exc).__name__}: {exc}\n\n{trace}", encoding="utf-8"
+        )
+        folder.finish(INTERRUPTED if reason == "interrupted" else FAILED)
         raise
+    folder.finish(COMPLETE)
+    return result
 
 
 def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult:

@@ -8,13 +8,13 @@ folder's `inputs/`, so a run can be repeated from its folder alone.
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from platoon_sumo.errors import SumoError
 from platoon_sumo.scenario import RunPlan, VehicleTypeConfig
+from platoon_sumo.subprocesses import run_tool
 from platoon_sumo.sumo.backend import sumo_home
 
 BACKGROUND_TYPE = "background"
@@ -107,7 +107,7 @@ def _random_trips(plan: RunPlan, directory: Path, type_id: str) -> Path:
         "--trip-attributes", f'type="{type_id}" departLane="best" departSpeed="max"',
     ]  # fmt: skip
     env = {**os.environ, "SUMO_HOME": sumo_home()}
-    done = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False, cwd=directory)
+    done = run_tool(cmd, env=env, cwd=directory)
     if done.returncode != 0 or not out.is_file():
         raise SumoError(f"randomTrips.py failed: {done.stderr.strip() or done.stdout.strip()}")
     return out

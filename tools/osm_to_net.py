@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from platoon_sumo.subprocesses import run_tool
 from platoon_sumo.sumo.backend import resolve_sumo_path, sumo_binary, sumo_home
 
 #: Our road-type overrides, loaded after SUMO's OSM type map.
@@ -73,10 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        done = subprocess.run(
-            netconvert_command(osm, tmp, not args.no_guess_tls, extra),
-            capture_output=True, text=True, check=False,
-        )  # fmt: skip
+        done = run_tool(netconvert_command(osm, tmp, not args.no_guess_tls, extra))
         report_warnings(done.stderr)
         edges = drivable_edges(tmp) if done.returncode == 0 else 0
         if edges == 0 and (done.returncode == 0 or "No edges loaded" in done.stderr):

@@ -7,6 +7,7 @@ Command. They never call SUMO (the loop reads the world once and hands them a vi
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
@@ -179,9 +180,32 @@ def _failure(cls: type, group: Sequence[Observation], exc: Exception) -> PluginE
 
 
 def _checked(cls: type, obs: Observation, command: object) -> Command:
+    """`command` if it is a Command a vehicle can execute; a PluginError naming the
+    controller, the vehicle, the time and what is wrong otherwise (never let SUMO drive
+    the car on instead)."""
+    who = f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}'"
     if not isinstance(command, Command):
         raise PluginError(
-            f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}' "
-            f"returned {type(command).__name__} at t={obs.time_s:.2f} s, not a Command"
+            f"{who} returned {type(command).__name__} at t={obs.time_s:.2f} s, not a Command"
         )
+    problem = command_problem(command)
+    if problem:
+        raise PluginError(f"{who} returned an invalid command at t={obs.time_s:.2f} s: {problem}")
     return command
+
+
+def command_problem(command: Command) -> str | None:
+    """What makes `command` impossible to execute, or None."""
+    speed = command.speed_mps
+    if not isinstance(speed, (int, float)) or not math.isfinite(speed) or speed < 0:
+        return f"speed_mps={speed!r} (must be a finite number >= 0)"
+    rate = command.yaw_rate_radps
+    if not isinstance(rate, (int, float)) or not math.isfinite(rate):
+        return f"yaw_rate_radps={rate!r} (must be a finite number)"
+    heading = command.heading_rad
+    finite_heading = isinstance(heading, (int, float)) and math.isfinite(heading)
+    if heading is not None and not finite_heading:
+        return f"heading_rad={heading!r} (must be a finite number or None)"
+    if command.lane_change not in (-1, 0, 1):
+        return f"lane_change={command.lane_change!r} (must be -1, 0 or +1)"
+    return None

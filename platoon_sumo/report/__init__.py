@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ import pandas as pd
 
 from platoon_sumo.errors import PlatoonSumoError
 from platoon_sumo.report import figures
+from platoon_sumo.results import COMPLETE, FAILED, check_finished_run, claim
 
 __all__ = ["ReportError", "load_results", "write_comparison", "write_report"]
 
@@ -26,23 +27,36 @@ class ReportError(PlatoonSumoError):
     """A results folder that cannot be reported on (unfinished, or without tables)."""
 
 
-def load_results(directory: Path) -> tuple[dict[str, Any], pd.DataFrame, pd.DataFrame]:
-    """(summary, trajectories, vehicles) of a complete results folder."""
-    summary_path = directory / "summary.json"
-    if not summary_path.is_file():
-        why = "the run failed (FAILED.txt)" if (directory / "FAILED.txt").is_file() else (
-            "no summary.json: not a finished run")  # fmt: skip
-        raise ReportError(f"{directory}: {why}")
-    summary = json.loads(summary_path.read_text(encoding="utf-8"))
-    if (directory / "trajectories.csv").is_file():
-        traj = pd.read_csv(directory / "trajectories.csv")
-    elif (directory / "trajectories.parquet").is_file():
+Warn = Callable[[str], None]
+
+
+def load_results(
+    directory: Path, warn: Warn | None = None
+) -> tuple[dict[str, Any], pd.DataFrame, pd.DataFrame]:
+    """(summary, trajectories, vehicles) of a results folder, once its manifest shows a
+    finished run with every file as written (`results.check_finished_run`, whose
+    warnings go to `warn`). A run in which no platoon vehicle departed has empty tables."""
+    for message in check_finished_run(directory):
+        if warn is not None:
+            warn(message)
+    summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
+    if summary.get("trajectory_format") == "parquet":
         traj = pd.read_parquet(directory / "trajectories.parquet")
+    elif (directory / "trajectories.csv").is_file():
+        traj = _read_csv(directory / "trajectories.csv")
     else:
         raise ReportError(f"{directory}: no trajectory table (outputs.trajectories was off)")
-    vehicles = pd.read_csv(directory / "vehicles.csv") if (
-        directory / "vehicles.csv").is_file() else pd.DataFrame()  # fmt: skip
-    return summary, traj, vehicles
+    return summary, traj, _read_csv(directory / "vehicles.csv")
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    """A table of ours; empty (no platoon vehicle departed) when the file has no rows."""
+    if not path.is_file() or path.stat().st_size == 0:
+        return pd.DataFrame()
+    try:
+        return pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        return pd.DataFrame()
 
 
 def _fmt(value: Any) -> str:
@@ -101,12 +115,30 @@ TRAFFIC_COLUMNS = (
 )
 
 
-def write_report(directory: str | Path, out: str | Path | None = None) -> Path:
-    """Figures and `report.md` for one results folder; returns the report's path."""
+def write_report(
+    directory: str | Path, out: str | Path | None = None, warn: Warn | None = None
+) -> Path:
+    """Figures and `report.md` for one results folder; returns the report's path.
+
+    The report folder (default `report/` inside the results) is claimed like a results
+    folder: new, empty, or an earlier report of ours, which it replaces."""
     directory = Path(directory)
-    summary, traj, vehicles = load_results(directory)
+    summary, traj, vehicles = load_results(directory, warn)
     out_dir = Path(out) if out is not None else directory / "report"
-    out_dir.mkdir(parents=True, exist_ok=True)
+    folder = claim(out_dir, "report")
+    try:
+        path = _write_report(directory, summary, traj, vehicles, out_dir)
+    except BaseException:
+        folder.finish(FAILED)
+        raise
+    folder.finish(COMPLETE)
+    return path
+
+
+def _write_report(
+    directory: Path, summary: dict[str, Any], traj: pd.DataFrame, vehicles: pd.DataFrame,
+    out_dir: Path,
+) -> Path:  # fmt: skip
     net = summary.get("network_file")
     figs: list[tuple[str, Path]] = []
     if len(traj):
@@ -137,6 +169,9 @@ def write_report(directory: str | Path, out: str | Path | None = None) -> Path:
     else:
         scan_note = ("\nNo laser-scan figure: no platoon vehicle in this run carries a sensor, "
                      "so there is no scan to draw (`scan_snapshot.npz` is absent).\n")  # fmt: skip
+    if not len(traj):
+        scan_note += ("\nNo platoon vehicle drove in this run (none departed, or the run "
+                      "had no platoons), so there are no platoon figures.\n")  # fmt: skip
     text = _report_text(summary, vehicles, figs, out_dir) + scan_note
     path = out_dir / "report.md"
     path.write_text(text, encoding="utf-8")
@@ -185,11 +220,13 @@ def _report_text(
     return "\n".join(parts)
 
 
-def comparison_table(directories: Sequence[Path]) -> pd.DataFrame:
-    """One row per run: the worst platoon's figures (`overall`) and the traffic effect."""
+def comparison_table(
+    runs: Sequence[tuple[Path, dict[str, Any]]],
+) -> pd.DataFrame:
+    """One row per (folder, summary): the worst platoon's figures (`overall`) and the
+    traffic effect."""
     rows = []
-    for d in directories:
-        summary, _, _ = load_results(d)
+    for d, summary in runs:
         row: dict[str, Any] = {"run": d.name, "scenario": summary.get("scenario"),
                                "seed": summary.get("seed")}  # fmt: skip
         row.update(summary.get("overall", {}))
@@ -209,19 +246,38 @@ def comparison_table(directories: Sequence[Path]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_comparison(directories: Sequence[str | Path], out: str | Path) -> Path:
-    """comparison.csv, comparison.md and overlay figures of several runs in `out`."""
+def write_comparison(
+    directories: Sequence[str | Path], out: str | Path, warn: Warn | None = None
+) -> Path:
+    """comparison.csv, comparison.md and overlay figures of several runs in `out`.
+
+    Every run is checked and read before anything is written; `out` is claimed like a
+    results folder (new, empty, or an earlier comparison of ours)."""
     dirs = [Path(d) for d in directories]
     names = [d.name for d in dirs]
     if len(set(names)) != len(names):
         dirs_named = [Path(f"{d.parent.name}_{d.name}") for d in dirs]
         names = [d.name for d in dirs_named]
+    loaded = [load_results(d, warn) for d in dirs]
     out_dir = Path(out)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    table = comparison_table(dirs)
+    folder = claim(out_dir, "comparison")
+    try:
+        path = _write_comparison(dirs, names, loaded, out_dir)
+    except BaseException:
+        folder.finish(FAILED)
+        raise
+    folder.finish(COMPLETE)
+    return path
+
+
+def _write_comparison(
+    dirs: list[Path], names: list[str],
+    loaded: list[tuple[dict[str, Any], pd.DataFrame, pd.DataFrame]], out_dir: Path,
+) -> Path:  # fmt: skip
+    table = comparison_table([(d, s) for d, (s, _, _) in zip(dirs, loaded, strict=True)])
     table["run"] = names
     table.to_csv(out_dir / "comparison.csv", index=False)
-    runs = [(name, *load_results(d)[1:]) for name, d in zip(names, dirs, strict=True)]
+    runs = [(name, t, v) for name, (_, t, v) in zip(names, loaded, strict=True)]
     bars = figures.compare_bars(table, (
         ("max_rms_spacing_error_m", "RMS spacing error,\nworst member [m]"),
         ("min_gap_m", "min gap [m]"), ("max_accel_l2_gain", "accel. l2 gain, max [-]"),

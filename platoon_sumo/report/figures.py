@@ -204,7 +204,10 @@ def compare_bars(table: pd.DataFrame, metrics: Sequence[tuple[str, str]], path: 
     runs = table["run"].astype(str).tolist()
     colors = [plt.get_cmap("tab10")(i % 10) for i in range(len(runs))]
     for ax, (key, label) in zip(axes[0], metrics, strict=True):
-        values = pd.to_numeric(table[key], errors="coerce").fillna(0.0) if key in table else 0.0
+        raw = pd.to_numeric(table[key], errors="coerce") if key in table else None
+        if raw is None or raw.isna().all():
+            _not_available(ax, "n/a: no run has this metric")
+        values = raw.fillna(0.0) if raw is not None else 0.0
         ax.bar(range(len(runs)), values, color=colors)
         ax.set_xticks(range(len(runs)))
         ax.set_xticklabels(runs, rotation=20, ha="right", fontsize=8)
@@ -236,7 +239,7 @@ def compare_along(runs: Sequence[tuple[str, pd.DataFrame]], path: Path) -> Path:
     for ax in (left, right):
         ax.set_xlabel("member index (0 = leader)")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        _legend_or_note(ax, "n/a: no platoon vehicle in these runs")
         ax.xaxis.get_major_locator().set_params(integer=True)
     return _save(fig, path)
 
@@ -258,5 +261,20 @@ def compare_speeds(runs: Sequence[tuple[str, pd.DataFrame]], path: Path) -> Path
     ax.set_ylabel("speed [m/s]")
     ax.set_title("Speed of the first and last member of each run's platoon")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    _legend_or_note(ax, "n/a: no platoon vehicle in these runs")
     return _save(fig, path)
+
+
+def _not_available(ax: Any, text: str) -> None:
+    """`text` in the middle of an empty panel, without a meaningless value axis."""
+    ax.set_yticks([])
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=10,
+            color="0.4")  # fmt: skip
+
+
+def _legend_or_note(ax: Any, note: str) -> None:
+    """A legend of the lines drawn, or `note` in the middle when nothing was drawn."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8)
+    else:
+        _not_available(ax, note)

@@ -64,10 +64,12 @@ def test_compare_writes_table_markdown_and_overlays(results, tmp_path):
         assert_image(out / name)
 
 
-def test_report_of_an_unfinished_folder_is_one_error_line(tmp_path, capsys):
+def test_report_of_a_folder_we_did_not_write_is_one_error_line(tmp_path, capsys):
     (tmp_path / "FAILED.txt").write_text("SumoError: boom\n")
-    assert main(["report", str(tmp_path)]) == 1
-    assert "the run failed" in capsys.readouterr().err
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not the results of a platoon-sumo run" in err
+    assert not (tmp_path / "report").exists()
 
 
 def test_parquet_trajectories_match_csv(tmp_path, write_scenario):
