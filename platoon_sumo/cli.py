@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import signal
 import sys
 import threading
@@ -29,6 +30,8 @@ if TYPE_CHECKING:
     from platoon_sumo.sensors.laser import LaserScan
 
 DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
+#: Set to show the traceback of an internal error instead of one line.
+TRACEBACK_ENV = "PLATOON_SUMO_TRACEBACK"
 
 
 def default_scenario() -> Path:
@@ -309,6 +312,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         terminated = isinstance(exc, Terminated)
         print(f"interrupted ({'SIGTERM' if terminated else 'Ctrl-C'})", file=sys.stderr)
         return 143 if terminated else 130
+    except Exception as exc:  # a bug of ours: one line, the traceback on request
+        if os.environ.get(TRACEBACK_ENV):
+            raise
+        print(
+            f"error: internal error of platoon-sumo {platoon_sumo.__version__}: "
+            f"{type(exc).__name__}: {exc} (a run's FAILED.txt has the traceback; "
+            f"{TRACEBACK_ENV}=1 shows it here; please report it)",
+            file=sys.stderr,
+        )
+        return 1
     finally:
         if main_thread:
             signal.signal(signal.SIGTERM, previous)

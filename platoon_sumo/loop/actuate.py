@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from platoon_sumo.actuation import ActuationBatch
+from platoon_sumo.errors import PlatoonSumoError, PluginError
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import ACCEL, SPEED, YAW, Member, X, Y
@@ -44,7 +45,17 @@ class Actuate:
                 model=platoon.model(),
                 dt_s=dt_s,
             )
-            result = actuator.apply(batch, ctx.backend)
+            try:
+                result = actuator.apply(batch, ctx.backend)
+            except PlatoonSumoError:
+                raise
+            except Exception as exc:
+                cls = type(actuator)
+                raise PluginError(
+                    f"actuator {cls.__module__}.{cls.__qualname__} of platoon "
+                    f"'{platoon.config.id}' (vehicles {', '.join(batch.vehicle_ids[:3])}) "
+                    f"failed at t={ctx.world.time_s:.2f} s: {type(exc).__name__}: {exc}"
+                ) from exc
             if result.state is not None:
                 new = result.state
                 fleet.kin[rows, ACCEL] = (new.speed_mps - kin[:, SPEED]) / dt_s
