@@ -31,6 +31,7 @@ from platoon_sumo.sumo.backend import resolve_sumo_path
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
+from platoon_sumo.yaml_input import MAX_BYTES, YamlLimitError, load_bounded
 
 VEHICLE_CLASSES = (
     "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
@@ -558,6 +559,12 @@ def load_scenario(path: str | Path) -> ScenarioSource:
     shown = str(path)
     if not p.is_file():
         raise ScenarioError(shown, "", "scenario file not found", "check the path")
+    size = p.stat().st_size
+    if size > MAX_BYTES:
+        raise ScenarioError(
+            shown, "", f"file is {size / 2**20:.1f} MB; scenario files are limited to "
+            f"{MAX_BYTES // 2**20} MB", "put large data in route or additional files",
+        )  # fmt: skip
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -565,7 +572,9 @@ def load_scenario(path: str | Path) -> ScenarioSource:
             shown, "", f"not UTF-8 text ({exc.reason} at byte {exc.start})"
         ) from None
     try:
-        data = yaml.safe_load(text)
+        data = load_bounded(text)
+    except YamlLimitError as exc:
+        raise ScenarioError(shown, exc.where, exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else ""
