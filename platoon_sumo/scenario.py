@@ -37,6 +37,7 @@ from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (re
 from platoon_sumo.sensors.base import SENSORS, SensorModel
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
+from platoon_sumo.sumo.inputs import InputFileError, check_route_file, check_xml
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
@@ -755,22 +756,31 @@ def prepare(source: ScenarioSource) -> RunPlan:
     sc = source.scenario
     file = str(source.path)
     net_file, cfg_routes, cfg_adds = _network_files(source)
-    route_files = cfg_routes + tuple(
-        _existing(source, v, f"network.route_files[{i}]")
-        for i, v in enumerate(sc.network.route_files)
-    )
-    route_files += tuple(
-        _existing(source, v, f"traffic.route_files[{i}]")
-        for i, v in enumerate(sc.traffic.route_files)
-    )
-    additional = cfg_adds + tuple(
-        _existing(source, v, f"network.additional_files[{i}]")
+    routes_keyed = [(r, "network.sumocfg") for r in cfg_routes]
+    routes_keyed += [
+        (_existing(source, v, key), key)
+        for section in ("network", "traffic")
+        for i, v in enumerate(getattr(sc, section).route_files)
+        for key in [f"{section}.route_files[{i}]"]
+    ]
+    adds_keyed = [(a, "network.sumocfg") for a in cfg_adds]
+    adds_keyed += [
+        (_existing(source, v, f"network.additional_files[{i}]"), f"network.additional_files[{i}]")
         for i, v in enumerate(sc.network.additional_files)
-    )
+    ]
+    route_files = tuple(r for r, _ in routes_keyed)
+    additional = tuple(a for a, _ in adds_keyed)
     try:
         network = Network(net_file)
     except Exception as exc:  # sumolib raises plain exceptions on a broken file
         raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
+    for path, key, is_route in [(*a, False) for a in adds_keyed] + [
+        (*r, True) for r in routes_keyed
+    ]:
+        try:
+            check_route_file(path, network) if is_route else check_xml(path)
+        except InputFileError as exc:
+            raise ScenarioError(file, key, str(exc)) from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
     steered = [(key, p.actuation) for p, key in declared if _steers(p.actuation)]
