@@ -636,7 +636,7 @@ def load_scenario(path: str | Path) -> ScenarioSource:
         raise ScenarioError(shown, "", "expected a mapping of sections at the top level")
     if "network" not in data:
         raise ScenarioError(shown, "network", "required key is missing")
-    default_name = re.sub(r"[^A-Za-z0-9_.-]", "_", p.stem)[:64].lstrip("_.-") or "scenario"
+    default_name = re.sub(r"[^A-Za-z0-9_.-]", "_", p.stem).strip("_.-")[:64] or "scenario"
     data = {"name": default_name, **data}
     scenario = load_dataclass(Scenario, data, shown)
     _check_horizons(scenario, shown)

@@ -81,7 +81,7 @@ class _BoundedLoader(Composer, _Base):
             event = self.peek_event()
             raise YamlLimitError(
                 f"line {event.start_mark.line + 1}",
-                f"nested more than {MAX_DEPTH} levels deep",
+                f"nesting deeper than {MAX_DEPTH} levels",
             )
         self._counts.append(0)
         node = super().compose_node(parent, index)
