@@ -677,12 +677,12 @@ LIMIT_CASES = [
     _route_case(
         "route_file_not_well_formed",
         _GOOD_ROUTES[:120],
-        ("not well-formed XML", "line 4"),
+        ("cannot be read as XML", "not well-formed", "line 4"),
     ),
     Case(
         "additional_file_not_well_formed",
         "network.additional_files[0]",
-        ("walls.add.xml", "not well-formed XML", "line 3"),
+        ("walls.add.xml", "cannot be read as XML", "not well-formed", "line 3"),
         put("network.additional_files", ["walls.add.xml"]),
         files=(
             (

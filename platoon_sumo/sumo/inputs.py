@@ -67,9 +67,9 @@ def _elements(path: Path) -> Iterator[tuple[str, ET.Element]]:
                 if not chunk:
                     return
     except ET.ParseError as exc:
-        raise InputFileError(f"{path.name}: not well-formed XML ({exc})") from None
+        raise InputFileError(f"{path} cannot be read as XML: not well-formed ({exc})") from None
     except (OSError, EOFError) as exc:
-        raise InputFileError(f"{path.name}: cannot be read ({exc})") from None
+        raise InputFileError(f"{path} cannot be read as XML ({exc})") from None
 
 
 def check_xml(path: Path) -> None:
@@ -77,7 +77,7 @@ def check_xml(path: Path) -> None:
     for event, element in _elements(path):
         if event == "end" and element.tag == "poly" and not _shape_ok(element.get("shape", "")):
             raise InputFileError(
-                f"{path.name}: poly '{element.get('id', '?')}': shape must be a list "
+                f"{path}: poly '{element.get('id', '?')}': shape must be a list "
                 "of finite x,y points"
             )
 
@@ -107,7 +107,7 @@ def check_route_file(path: Path, network: Network) -> None:
             name = f"{tag} '{element.get('id', '?')}'"
         problem = _problem(element, network)
         if problem is not None:
-            raise InputFileError(f"{path.name}: {name}: {problem}")
+            raise InputFileError(f"{path}: {name}: {problem}")
         if tag in _DEMAND:
             owner.pop()
 
