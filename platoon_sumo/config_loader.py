@@ -3,11 +3,18 @@
 Every dataclass field is a key; unknown keys fail with a "did you mean", wrong types
 and failed range checks (ValueError raised in ``__post_init__``) fail with the key path.
 The schema is the dataclasses themselves, so docs and validation cannot drift apart.
+
+Numbers are finite: NaN is refused everywhere, and so are infinities unless the field's
+metadata says it means "unbounded" (`field(metadata=ALLOW_INF)`). A field declared with
+`bounded(...)` carries its allowed range in its metadata; the loader checks it after the
+dataclass's own `__post_init__` (whose messages come first) and the reference generator
+(tools/scenario_reference.py) prints it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from collections.abc import Mapping, Sequence
@@ -18,6 +25,98 @@ from platoon_sumo.errors import ScenarioError, did_you_mean
 T = TypeVar("T")
 
 _TYPE_WORDS = {int: "an integer", float: "a number", str: "a string", bool: "true or false"}
+
+
+#: Field metadata: this number may be `.inf` / `-.inf` (it means "unbounded"); NaN never.
+ALLOW_INF: Mapping[str, Any] = types.MappingProxyType({"allow_inf": True})
+
+_UNITS = (
+    ("_mps2", "m/s²"), ("_radps", "rad/s"), ("_mps", "m/s"), ("_hz", "Hz"), ("_rad", "rad"),
+    ("_deg", "°"), ("_m", "m"), ("_s", "s"),
+)  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class Bounds:
+    """Allowed range of a numeric field (None: no bound on that side)."""
+
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    unit: str = ""
+
+    def contains(self, value: float) -> bool:
+        return not (
+            (self.ge is not None and not value >= self.ge)
+            or (self.gt is not None and not value > self.gt)
+            or (self.le is not None and not value <= self.le)
+            or (self.lt is not None and not value < self.lt)
+        )
+
+    def describe(self) -> str:
+        """E.g. `in [0.001, 1] s`, `> 0 m`, `<= 150 m/s`."""
+        low = (f"[{_num(self.ge)}", ">=", self.ge) if self.ge is not None else None
+        low = (f"({_num(self.gt)}", ">", self.gt) if self.gt is not None else low
+        high = (f"{_num(self.le)}]", "<=", self.le) if self.le is not None else None
+        high = (f"{_num(self.lt)})", "<", self.lt) if self.lt is not None else high
+        unit = f" {self.unit}" if self.unit else ""
+        if low and high:
+            return f"in {low[0]}, {high[0]}{unit}"
+        one = low or high
+        return f"{one[1]} {_num(one[2])}{unit}" if one else "any number"
+
+
+def _num(value: float | None) -> str:
+    assert value is not None
+    if isinstance(value, int) or float(value).is_integer():
+        return str(int(value))
+    return format(value, ".10g")
+
+
+def bounded(
+    default: Any = dataclasses.MISSING,
+    *,
+    ge: float | None = None,
+    gt: float | None = None,
+    le: float | None = None,
+    lt: float | None = None,
+    unit: str | None = None,
+    allow_inf: bool = False,
+) -> Any:
+    """A dataclass field with an allowed range, checked by the loader and documented.
+
+    `unit` defaults to the one the field name ends in (`_s`, `_m`, `_mps`, ...), found
+    when the class is loaded (the name is not known here)."""
+    meta: dict[str, Any] = {"bounds": Bounds(ge, gt, le, lt, unit or "")}
+    if unit is None:
+        meta["unit_from_name"] = True
+    if allow_inf:
+        meta["allow_inf"] = True
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def field_bounds(f: dataclasses.Field[Any]) -> Bounds | None:
+    """The range declared with `bounded` for a field, its unit filled in from the name."""
+    found = f.metadata.get("bounds")
+    if found is None or not f.metadata.get("unit_from_name"):
+        return typing.cast("Bounds | None", found)
+    unit = next((u for suffix, u in _UNITS if f.name.endswith(suffix)), "")
+    return dataclasses.replace(found, unit=unit)
+
+
+def check_bounds(obj: object) -> None:
+    """Raise FieldError for the first field of a dataclass instance outside its `bounded`
+    range (None values, i.e. "not set", pass)."""
+    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
+        bounds = field_bounds(f)
+        value = getattr(obj, f.name)
+        if bounds is None or value is None or isinstance(value, bool | str):
+            continue
+        if isinstance(value, int | float) and math.isinf(value) and f.metadata.get("allow_inf"):
+            continue
+        if not isinstance(value, int | float) or not bounds.contains(value):
+            raise FieldError(f.name, f"must be {bounds.describe()}, got {value!r}")
 
 
 class FieldError(ValueError):
@@ -58,22 +157,24 @@ def _describe(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
 
 
-def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
+def _convert(tp: Any, value: Any, file: str, path: str, finite: bool = True) -> Any:
     origin = get_origin(tp)
     if tp is Any:
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ScenarioError(file, path, f"expected a finite number, got {value!r}")
         return value
     if origin in (Union, types.UnionType):
         options = get_args(tp)
         if value is None and type(None) in options:
             return None
         if type(value) in options:  # an exact match wins: `float | int` keeps ints as ints
-            return value
+            return _convert(type(value), value, file, path, finite)
         errors: list[ScenarioError] = []
         for option in options:
             if option is type(None):
                 continue
             try:
-                return _convert(option, value, file, path)
+                return _convert(option, value, file, path, finite)
             except ScenarioError as exc:
                 errors.append(exc)
         if len(errors) == 1:
@@ -92,7 +193,9 @@ def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
         if not isinstance(value, list | tuple):
             raise ScenarioError(file, path, f"expected a list, got {_show(value)}")
         item_type = args[0] if args else Any
-        return tuple(_convert(item_type, v, file, _join(path, i)) for i, v in enumerate(value))
+        return tuple(
+            _convert(item_type, v, file, _join(path, i), finite) for i, v in enumerate(value)
+        )
     if origin in (dict, Mapping):
         key_type, value_type = get_args(tp) or (str, Any)
         if not isinstance(value, Mapping):
@@ -100,7 +203,7 @@ def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
         return types.MappingProxyType(
             {
                 _convert(key_type, k, file, _join(path, str(k))): _convert(
-                    value_type, v, file, _join(path, str(k))
+                    value_type, v, file, _join(path, str(k)), finite
                 )
                 for k, v in value.items()
             }
@@ -108,7 +211,14 @@ def _convert(tp: Any, value: Any, file: str, path: str) -> Any:
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ScenarioError(file, path, f"expected a number, got {_show(value)}")
-        return float(value)
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond the range of floats
+            number = math.inf
+        if not math.isfinite(number) and (finite or math.isnan(number)):
+            shown = "an integer too large for a number" if isinstance(value, int) else repr(value)
+            raise ScenarioError(file, path, f"expected a finite number, got {shown}")
+        return number
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ScenarioError(file, path, f"expected an integer, got {_show(value)}")
@@ -139,11 +249,14 @@ def _convert_dataclass(cls: type, value: Any, file: str, path: str) -> Any:
     kwargs: dict[str, Any] = {}
     for name, field in fields.items():
         if name in value:
-            kwargs[name] = _convert(hints[name], value[name], file, _join(path, name))
+            finite = not field.metadata.get("allow_inf", False)
+            kwargs[name] = _convert(hints[name], value[name], file, _join(path, name), finite)
         elif field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING:
             raise ScenarioError(file, _join(path, name), "required key is missing")
     try:
-        return cls(**kwargs)
+        built = cls(**kwargs)
+        check_bounds(built)
+        return built
     except FieldError as exc:
         raise ScenarioError(file, _join(path, exc.key), exc.message, exc.hint) from None
     except ValueError as exc:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -21,16 +22,26 @@ from typing import Any
 import yaml
 
 from platoon_sumo.actuation import ACTUATORS
-from platoon_sumo.config_loader import load_dataclass, require, require_choice, require_positive
+from platoon_sumo.config_loader import (
+    FieldError,
+    bounded,
+    check_bounds,
+    load_dataclass,
+    require,
+    require_choice,
+    require_positive,
+)
 from platoon_sumo.control import CONTROLLERS, Controller
 from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (registers)
 from platoon_sumo.sensors.base import SENSORS, SensorModel
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
+from platoon_sumo.sumo.inputs import InputFileError, check_route_file, check_xml
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
+from platoon_sumo.yaml_input import MAX_BYTES, YamlLimitError, load_bounded
 
 VEHICLE_CLASSES = (
     "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
@@ -41,6 +52,38 @@ VEHICLE_CLASSES = (
 )  # fmt: skip
 LANE_CHANGE_MODELS = ("LC2013", "SL2015", "DK2008")
 
+# Ranges of numeric keys (also printed in docs/scenarios.md).
+#: Shortest step SUMO accepts (it counts time in milliseconds) [s].
+MIN_STEP_S = 0.001
+#: Latest time of any kind (begin, end, departures, horizons): about 116 days [s].
+MAX_TIME_S = 10_000_000.0
+#: SUMO's seeds are 32-bit signed integers.
+MAX_SEED = 2**31 - 1
+#: Physically meaningful vehicles: speed [m/s], length and width [m], acceleration [m/s²].
+MAX_SPEED_MPS = 150.0
+MAX_LENGTH_M = 50.0
+MAX_WIDTH_M = 20.0
+MAX_ACCEL_MPS2 = 50.0
+#: Demand: a flow's rate [vehicles/h], random trips' shortest period [s] and most
+#: departures one random-trips section may ask for.
+MAX_VEHS_PER_HOUR = 100_000.0
+MIN_PERIOD_S = 0.01
+MAX_RANDOM_TRIPS = 2_000_000
+#: Platoons one flow's `platoon_share` may insert over its span.
+MAX_FLOW_PLATOONS = 100_000
+
+#: Names that become file or folder names (scenario name, platoon, vehicle type and sensor
+#: ids): a letter or digit, then letters, digits, `_`, `.` or `-`, at most 64 characters.
+SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+SAFE_ID_TEXT = "1 to 64 letters, digits, '_', '.' or '-', starting with a letter or digit"
+
+
+def require_safe_id(value: str, key: str) -> None:
+    """`value` must be usable as a file name anywhere (see SAFE_ID)."""
+    ok = SAFE_ID.fullmatch(value) is not None
+    require(ok, key, f"{value!r} is not a safe name: use {SAFE_ID_TEXT}")
+
+
 CAR_FOLLOW_MODELS = (
     "Krauss", "KraussOrig1", "KraussPS", "KraussX", "EIDM", "IDM", "IDMM", "IIDM", "ACC",
     "CACC", "W99", "Wiedemann", "SmartSK", "Daniel1", "PWagner2009", "BKerner", "Rail", "CC",
@@ -49,25 +92,26 @@ CAR_FOLLOW_MODELS = (
 
 @dataclass(frozen=True)
 class SimulationConfig:
-    step_s: float = 0.1
+    step_s: float = bounded(0.1, ge=MIN_STEP_S, le=1.0)
     """SUMO step length and control period [s]."""
-    end_s: float = 600.0
+    end_s: float = bounded(600.0, gt=0, le=MAX_TIME_S)
     """Simulated time at which the run stops [s]."""
-    begin_s: float = 0.0
+    begin_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """Simulated time at which SUMO starts [s]."""
-    seed: int = 42
+    seed: int = bounded(42, ge=0, le=MAX_SEED)
     """Seeds SUMO and every random generator of ours."""
-    lateral_resolution_m: float | None = 0.8
+    lateral_resolution_m: float | None = bounded(0.8, gt=0, le=10)
     """SUMO sublane resolution [m]: planar and sublane platoons need it (without it
     their poses snap to lane centres and SUMO drivers miss a car between lanes). null: no
     sublane model, SUMO's lane changes take one step (enough when every platoon uses
     `actuation: lane`)."""
-    time_to_teleport_s: float | None = None
+    time_to_teleport_s: float | None = bounded(None, gt=0, le=MAX_TIME_S)
     """SUMO's jam teleport: a vehicle stuck this long [s] is moved ahead along its route
     (`--time-to-teleport`); each teleport is a `teleport` event. null (default): off,
     vehicles wait (a gridlock stays one)."""
 
     def __post_init__(self) -> None:
+        require(math.isfinite(self.begin_s), "begin_s", "must be a finite number")
         require(math.isfinite(self.step_s), "step_s", "must be a finite number")
         require(math.isfinite(self.end_s), "end_s", "must be a finite number")
         require(self.step_s > 0, "step_s", f"must be > 0 s, got {self.step_s}")
@@ -85,6 +129,7 @@ class SimulationConfig:
             "time_to_teleport_s",
             "must be a finite number > 0 s (or null: no teleports)",
         )
+        check_bounds(self)  # here too: `run --end/--seed` replace fields after loading
 
 
 @dataclass(frozen=True)
@@ -99,7 +144,7 @@ class NetworkConfig:
     """Polygons of type `wall` or `building*` in these files are obstacles for lasers."""
     kerbs: bool = False
     """Make the boundary of the road area (lanes + junctions) a laser obstacle."""
-    kerb_margin_m: float = 0.2
+    kerb_margin_m: float = bounded(0.2, ge=0, le=10)
     """Distance of the kerb line outside the outermost lane edge."""
 
     def __post_init__(self) -> None:
@@ -119,31 +164,31 @@ class VehicleTypeConfig:
     """Type id; `traffic.flows[].type` refers to it."""
     car_follow_model: str = "Krauss"
     """SUMO car-following model (list below)."""
-    probability: float = 1.0
+    probability: float = bounded(1.0, gt=0, le=1e6)
     """Share of this type in the background mix."""
     vclass: str = "passenger"
     """SUMO vehicle class; decides which lanes the type may use."""
-    length_m: float = 5.0
+    length_m: float = bounded(5.0, gt=0, le=MAX_LENGTH_M)
     """Length, bumper to bumper [m]."""
-    width_m: float = 1.8
+    width_m: float = bounded(1.8, gt=0, le=MAX_WIDTH_M)
     """Width [m]."""
-    min_gap_m: float = 2.5
+    min_gap_m: float = bounded(2.5, ge=0, le=100)
     """Gap kept to the vehicle ahead when stopped [m]."""
-    max_speed_mps: float = 55.0
+    max_speed_mps: float = bounded(55.0, gt=0, le=MAX_SPEED_MPS)
     """Top speed [m/s]."""
-    accel_mps2: float = 2.6
+    accel_mps2: float = bounded(2.6, gt=0, le=MAX_ACCEL_MPS2)
     """Maximum acceleration [m/s²]."""
-    decel_mps2: float = 4.5
+    decel_mps2: float = bounded(4.5, gt=0, le=MAX_ACCEL_MPS2)
     """Comfortable deceleration [m/s²]."""
-    emergency_decel_mps2: float = 9.0
+    emergency_decel_mps2: float = bounded(9.0, gt=0, le=MAX_ACCEL_MPS2)
     """Deceleration in an emergency [m/s²]."""
-    sigma: float = 0.5
+    sigma: float = bounded(0.5, ge=0, le=1)
     """Driver imperfection (Krauss family)."""
-    tau_s: float = 1.0
+    tau_s: float = bounded(1.0, gt=0, le=100)
     """Desired time headway."""
-    speed_factor: float = 1.0
+    speed_factor: float = bounded(1.0, gt=0, le=10)
     """Mean multiplier on lane speed limits (SUMO speedFactor)."""
-    speed_dev: float = 0.1
+    speed_dev: float = bounded(0.1, ge=0, le=10)
     """Spread of the speed factor between drivers (SUMO speedDev)."""
     lane_change_model: str = "SL2015"
     """SUMO lane-change model."""
@@ -151,6 +196,7 @@ class VehicleTypeConfig:
     """Further attributes written as-is onto the vType (e.g. `delta` for IDM)."""
 
     def __post_init__(self) -> None:
+        require_safe_id(self.id, "id")
         require_choice(self.car_follow_model, CAR_FOLLOW_MODELS, "car_follow_model")
         require_choice(self.lane_change_model, LANE_CHANGE_MODELS, "lane_change_model")
         require_choice(self.vclass, VEHICLE_CLASSES, "vclass")
@@ -173,17 +219,17 @@ class FlowConfig:
     """First edge of the flow's route."""
     to_edge: str
     """Last edge of the flow's route."""
-    vehs_per_hour: float
+    vehs_per_hour: float = bounded(gt=0, le=MAX_VEHS_PER_HOUR)
     """Vehicles an hour."""
     via_edges: tuple[str, ...] = ()
     """Edges the route must pass, in order."""
-    begin_s: float = 0.0
+    begin_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """Start of the flow [s]."""
-    end_s: float | None = None
+    end_s: float | None = bounded(None, gt=0, le=MAX_TIME_S)
     """Defaults to the simulation's end."""
     type: str | None = None
     """A vehicle type id; defaults to the background mix of `traffic.vehicle_types`."""
-    platoon_share: float = 0.0
+    platoon_share: float = bounded(0.0, ge=0, lt=1)
     """Penetration: share of this flow's vehicles that drive as platoons instead, built
     from `platoon_template` and inserted evenly over the flow's time span."""
     platoon_template: str | None = None
@@ -204,17 +250,17 @@ class FlowConfig:
 class RandomTripsConfig:
     """Random trips generated at run time with SUMO's randomTrips.py, routed by SUMO."""
 
-    period_s: float
+    period_s: float = bounded(ge=MIN_PERIOD_S, le=MAX_TIME_S)
     """Mean time between two departures [s] (e.g. 0.5 = 7,200 vehicles an hour)."""
-    begin_s: float = 0.0
+    begin_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """Time of the first departure [s]."""
-    end_s: float | None = None
+    end_s: float | None = bounded(None, gt=0, le=MAX_TIME_S)
     """End of the departures [s]; default: the simulation's end."""
-    seed: int | None = None
+    seed: int | None = bounded(None, ge=0, le=MAX_SEED)
     """Defaults to the simulation seed."""
-    min_distance_m: float = 300.0
+    min_distance_m: float = bounded(300.0, ge=0, le=1e6)
     """Shortest distance between a trip's start and end [m]."""
-    fringe_factor: float = 5.0
+    fringe_factor: float = bounded(5.0, ge=1, le=1e6)
     """How much more likely trips start/end at the network border than inside."""
 
     def __post_init__(self) -> None:
@@ -234,7 +280,7 @@ class TrafficConfig:
     """Flows of human-driven vehicles between two edges, routed by SUMO."""
     random_trips: RandomTripsConfig | None = None
     """Random trips all over the network (null: none)."""
-    scale: float = 1.0
+    scale: float = bounded(1.0, gt=0, le=100)
     """Multiplies all human-driven demand (route files, flows, random trips): SUMO's
     `--scale`, e.g. 0.5 keeps every second vehicle. Platoons are not scaled."""
 
@@ -279,29 +325,29 @@ class VehicleConfig:
 
     model: str = "bicycle"
     """A registered vehicle model: bicycle (cars) or unicycle (differential-drive robots)."""
-    length_m: float = 4.5
+    length_m: float = bounded(4.5, gt=0, le=MAX_LENGTH_M)
     """Length, bumper to bumper [m]."""
-    width_m: float = 1.8
+    width_m: float = bounded(1.8, gt=0, le=MAX_WIDTH_M)
     """Width [m]."""
-    min_gap_m: float = 2.5
+    min_gap_m: float = bounded(2.5, ge=0, le=100)
     """What SUMO drivers keep behind this vehicle when stopped."""
-    wheelbase_m: float = 2.7
+    wheelbase_m: float = bounded(2.7, gt=0, le=MAX_LENGTH_M)
     """Rear axle to front axle [m] (bicycle model)."""
-    rear_overhang_m: float | None = None
+    rear_overhang_m: float | None = bounded(None, ge=0, le=MAX_LENGTH_M)
     """Rear bumper to reference point (rear axle); default centres the wheelbase."""
-    max_speed_mps: float = 16.7
+    max_speed_mps: float = bounded(16.7, gt=0, le=MAX_SPEED_MPS)
     """Top speed [m/s]."""
-    max_accel_mps2: float = 2.5
+    max_accel_mps2: float = bounded(2.5, gt=0, le=MAX_ACCEL_MPS2)
     """Maximum acceleration [m/s²]."""
-    max_decel_mps2: float = 7.5
+    max_decel_mps2: float = bounded(7.5, gt=0, le=MAX_ACCEL_MPS2)
     """Maximum braking deceleration [m/s²]."""
-    max_yaw_rate_radps: float = 1.0
+    max_yaw_rate_radps: float = bounded(1.0, gt=0, le=50)
     """Largest yaw rate [rad/s]."""
-    max_steer_rad: float = 0.6
+    max_steer_rad: float = bounded(0.6, gt=0, lt=math.pi / 2)
     """Front-wheel steering limit [rad] (bicycle model)."""
     vclass: str = "passenger"
     """SUMO vehicle class of the platoon's vehicle type."""
-    sumo_tau_s: float = 1.0
+    sumo_tau_s: float = bounded(1.0, gt=0, le=100)
     """SUMO's driver time headway (tau) for the platoon's vehicle type [s]; matters with
     `actuation: lane` only, where SUMO's safe speed, computed with it, caps the command
     (smaller: SUMO lets the vehicle follow closer)."""
@@ -372,6 +418,10 @@ class SensorSpec:
     params: Mapping[str, Any] = field(default_factory=dict)
     """The model's parameters (its Params dataclass)."""
 
+    def __post_init__(self) -> None:
+        if self.name is not None:
+            require_safe_id(self.name, "name")
+
 
 @dataclass(frozen=True)
 class RoleConfig:
@@ -394,17 +444,17 @@ class PlatoonConfig:
     """Platoon name; its vehicles are `<id>.0` (leader), `<id>.1`, ..."""
     route: RouteConfig | None = None
     """The route every member drives (required unless the platoon is a template)."""
-    members: int = 1
+    members: int = bounded(1, ge=1, le=100)
     """Number of vehicles (1 to 100); member 0 leads."""
-    depart_s: float = 0.0
+    depart_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """When the platoon is handed to SUMO for insertion [s]."""
-    spacing_m: float = 8.0
+    spacing_m: float = bounded(8.0, gt=0, le=1000)
     """Initial bumper-to-bumper gap between members [m]."""
-    depart_pos_m: float | None = None
+    depart_pos_m: float | None = bounded(None, gt=0, le=1e6)
     """Leader's front bumper on the first edge [m]; default: just room for everyone (or
     2 m before the edge's end). Members that do not fit behind it depart one by one, in order, as
     the ones ahead leave room."""
-    depart_lane: int | None = None
+    depart_lane: int | None = bounded(None, ge=0, le=100)
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
     """Geometry, motion model and limits of the members."""
@@ -418,7 +468,7 @@ class PlatoonConfig:
     car sideways within and across lanes through SUMO's sublane model (needs
     `simulation.lateral_resolution_m`); SUMO makes no lane change of its own, except the
     route's change for a car standing or crawling on a lane its route leaves."""
-    split_gap_m: float = 60.0
+    split_gap_m: float = bounded(60.0, gt=0, le=10_000)
     """Without a laser, a follower farther than this from its predecessor counts as split
     from it (with a laser: when the predecessor is out of its scan) [m]."""
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
@@ -437,6 +487,7 @@ class PlatoonConfig:
             bool(self.id) and " " not in self.id and "." not in self.id,
             "id", "must be a non-empty name without spaces or dots",
         )  # fmt: skip
+        require_safe_id(self.id, "id")
         require_choice(self.actuation, ACTUATORS.names(), "actuation")
         require(self.members >= 1, "members", "must be >= 1")
         require(self.members <= 100, "members", "must be <= 100")
@@ -455,22 +506,22 @@ class OutputConfig:
     """Per-step table of the platoon vehicles (trajectories.csv)."""
     tripinfo: bool = True
     """SUMO's tripinfo of every vehicle (tripinfo.csv)."""
-    chunk_rows: int = 20_000
+    chunk_rows: int = bounded(20_000, ge=1, le=10_000_000)
     """Rows buffered before the trajectory table is appended to disk."""
     format: str = "csv"
     """Format of the trajectory table: `csv`, or `parquet` (needs platoon-sumo[parquet])."""
-    metrics_start_s: float = 0.0
+    metrics_start_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """Spacing, comfort and string-stability metrics use the steps from this simulation
     time on (e.g. after a warm-up); safety events always count over the whole run [s]."""
     sumo_outputs: bool = True
     """SUMO's emissions device in tripinfo, its summary output and edgeData (network
     effect on the other traffic)."""
-    edgedata_period_s: float = 60.0
+    edgedata_period_s: float = bounded(60.0, gt=0, le=MAX_TIME_S)
     """Aggregation interval of SUMO's edgeData output [s]."""
-    scan_snapshot_s: float | None = None
+    scan_snapshot_s: float | None = bounded(None, ge=0, le=MAX_TIME_S)
     """Keep the first follower's laser scan at this time for the report's scan figure;
     default: the scan halfway through its scans that saw its predecessor [s]."""
-    gridlock_after_s: float | None = 300.0
+    gridlock_after_s: float | None = bounded(300.0, gt=0, le=MAX_TIME_S)
     """A vehicle (any, SUMO's or ours) standing still this long, neither at a stop of its
     schedule nor queued within 250 m of a red light, is reported as gridlocked (a
     `gridlock` event; checked every 10 simulated seconds) [s]; null: no check."""
@@ -501,6 +552,7 @@ class Scenario:
     """Free text for people; the run does not use it."""
 
     def __post_init__(self) -> None:
+        require_safe_id(self.name, "name")
         ids = [p.id for p in self.platoons]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         require(not duplicates, "platoons", f"duplicate platoon id(s): {', '.join(duplicates)}")
@@ -558,6 +610,12 @@ def load_scenario(path: str | Path) -> ScenarioSource:
     shown = str(path)
     if not p.is_file():
         raise ScenarioError(shown, "", "scenario file not found", "check the path")
+    size = p.stat().st_size
+    if size > MAX_BYTES:
+        raise ScenarioError(
+            shown, "", f"file is {size / 2**20:.1f} MB; scenario files are limited to "
+            f"{MAX_BYTES // 2**20} MB", "put large data in route or additional files",
+        )  # fmt: skip
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -565,7 +623,9 @@ def load_scenario(path: str | Path) -> ScenarioSource:
             shown, "", f"not UTF-8 text ({exc.reason} at byte {exc.start})"
         ) from None
     try:
-        data = yaml.safe_load(text)
+        data = load_bounded(text)
+    except YamlLimitError as exc:
+        raise ScenarioError(shown, exc.where, exc.message) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else ""
@@ -576,8 +636,41 @@ def load_scenario(path: str | Path) -> ScenarioSource:
         raise ScenarioError(shown, "", "expected a mapping of sections at the top level")
     if "network" not in data:
         raise ScenarioError(shown, "network", "required key is missing")
-    data = {"name": p.stem, **data}
-    return ScenarioSource(load_dataclass(Scenario, data, shown), p.resolve(), text)
+    default_name = re.sub(r"[^A-Za-z0-9_.-]", "_", p.stem).strip("_.-")[:64] or "scenario"
+    data = {"name": default_name, **data}
+    scenario = load_dataclass(Scenario, data, shown)
+    _check_horizons(scenario, shown)
+    return ScenarioSource(scenario, p.resolve(), text)
+
+
+def _check_horizons(sc: Scenario, file: str) -> None:
+    """Demand ends no later than the simulation: a horizon beyond it only costs time and
+    memory (random trips are generated up to it before the run starts)."""
+    end = sc.simulation.end_s
+
+    def within(value: float | None, key: str) -> None:
+        if value is not None and value > end:
+            raise ScenarioError(
+                file, key, f"{value:g} s is after the simulation's end ({end:g} s)",
+                "it must be <= simulation.end_s",
+            )  # fmt: skip
+
+    rt = sc.traffic.random_trips
+    if rt is not None:
+        within(rt.begin_s, "traffic.random_trips.begin_s")
+        within(rt.end_s, "traffic.random_trips.end_s")
+        span = (rt.end_s if rt.end_s is not None else end) - rt.begin_s
+        if span <= 0:
+            raise ScenarioError(file, "traffic.random_trips.end_s", "must be after begin_s")
+        if span / rt.period_s > MAX_RANDOM_TRIPS:
+            raise ScenarioError(
+                file, "traffic.random_trips.period_s",
+                f"{span:g} s every {rt.period_s:g} s are {span / rt.period_s:.0f} departures "
+                f"(at most {MAX_RANDOM_TRIPS})", "use a longer period or a shorter span",
+            )  # fmt: skip
+    for i, flow in enumerate(sc.traffic.flows):
+        within(flow.begin_s, f"traffic.flows[{i}].begin_s")
+        within(flow.end_s, f"traffic.flows[{i}].end_s")
 
 
 # --------------------------------------------------------------------------- preparing
@@ -663,22 +756,31 @@ def prepare(source: ScenarioSource) -> RunPlan:
     sc = source.scenario
     file = str(source.path)
     net_file, cfg_routes, cfg_adds = _network_files(source)
-    route_files = cfg_routes + tuple(
-        _existing(source, v, f"network.route_files[{i}]")
-        for i, v in enumerate(sc.network.route_files)
-    )
-    route_files += tuple(
-        _existing(source, v, f"traffic.route_files[{i}]")
-        for i, v in enumerate(sc.traffic.route_files)
-    )
-    additional = cfg_adds + tuple(
-        _existing(source, v, f"network.additional_files[{i}]")
+    routes_keyed = [(r, "network.sumocfg") for r in cfg_routes]
+    routes_keyed += [
+        (_existing(source, v, key), key)
+        for section in ("network", "traffic")
+        for i, v in enumerate(getattr(sc, section).route_files)
+        for key in [f"{section}.route_files[{i}]"]
+    ]
+    adds_keyed = [(a, "network.sumocfg") for a in cfg_adds]
+    adds_keyed += [
+        (_existing(source, v, f"network.additional_files[{i}]"), f"network.additional_files[{i}]")
         for i, v in enumerate(sc.network.additional_files)
-    )
+    ]
+    route_files = tuple(r for r, _ in routes_keyed)
+    additional = tuple(a for a, _ in adds_keyed)
     try:
         network = Network(net_file)
     except Exception as exc:  # sumolib raises plain exceptions on a broken file
         raise ScenarioError(file, "network", f"cannot read network {net_file}: {exc}") from None
+    for path, key, is_route in [(*a, False) for a in adds_keyed] + [
+        (*r, True) for r in routes_keyed
+    ]:
+        try:
+            check_route_file(path, network) if is_route else check_xml(path)
+        except InputFileError as exc:
+            raise ScenarioError(file, key, str(exc)) from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
     steered = [(key, p.actuation) for p, key in declared if _steers(p.actuation)]
@@ -787,6 +889,12 @@ def _platoons_from_flows(sc: Scenario, file: str) -> list[tuple[PlatoonConfig, s
         end_s = flow.end_s if flow.end_s is not None else sc.simulation.end_s
         per_hour = flow.vehs_per_hour * flow.platoon_share / template.members
         count = int((end_s - flow.begin_s) * per_hour / 3600.0)
+        if count > MAX_FLOW_PLATOONS:
+            raise ScenarioError(
+                file, f"{key}.platoon_share",
+                f"would insert {count} platoons (at most {MAX_FLOW_PLATOONS})",
+                "lower platoon_share or vehs_per_hour, or shorten the flow",
+            )  # fmt: skip
         period = 3600.0 / per_hour
         route = RouteConfig(
             from_edge=flow.from_edge, to_edge=flow.to_edge, via_edges=flow.via_edges
@@ -913,5 +1021,8 @@ def _laser(sensor: SensorConfig | None, file: str, key: str) -> LaserConfig | No
             )  # fmt: skip
     try:
         return LaserConfig.preset(sensor.preset, **dict(sensor.overrides))
+    except FieldError as exc:
+        where = f"{key}.overrides.{exc.key}" if exc.key in sensor.overrides else f"{key}.preset"
+        raise ScenarioError(file, where, exc.message) from None
     except (TypeError, ValueError) as exc:
         raise ScenarioError(file, f"{key}.overrides", str(exc)) from None

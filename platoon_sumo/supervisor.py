@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from platoon_sumo.config_loader import require_positive
+from platoon_sumo.config_loader import bounded, require_positive
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
 from platoon_sumo.world import SignalAhead
@@ -21,11 +21,11 @@ from platoon_sumo.world import SignalAhead
 class SupervisorConfig:
     signals: bool = True
     """Stop for red and yellow lights when the stop is possible."""
-    comfort_decel_mps2: float = 2.5
+    comfort_decel_mps2: float = bounded(2.5, gt=0, le=50)
     """Deceleration used to stop at a light [m/s²]."""
-    yellow_max_decel_mps2: float = 4.0
+    yellow_max_decel_mps2: float = bounded(4.0, gt=0, le=50)
     """On yellow, stop only if it takes at most this deceleration [m/s²]."""
-    stop_margin_m: float = 0.5
+    stop_margin_m: float = bounded(0.5, ge=0, le=100)
     """Front bumper stops this far before the stop line [m]."""
     yield_at_junctions: bool = True
     """Planar actuation: on a minor approach, stop before the junction while SUMO sees it
@@ -36,7 +36,7 @@ class SupervisorConfig:
     on the target lane is alongside or about to be."""
     emergency_braking: bool = True
     """Brake at full capability when the vehicle ahead (SUMO's ground truth) is too close."""
-    emergency_gap_m: float = 0.5
+    emergency_gap_m: float = bounded(0.5, ge=0, le=100)
     """Standstill gap the emergency brake protects [m]; robots want a few centimetres."""
 
     def __post_init__(self) -> None:

@@ -3,13 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import pytest
 
-from platoon_sumo.config_loader import FieldError, load_dataclass, require
+from platoon_sumo.config_loader import (
+    Bounds,
+    FieldError,
+    bounded,
+    field_bounds,
+    load_dataclass,
+    require,
+)
 from platoon_sumo.errors import ScenarioError
 
 FILE = "test.yaml"
@@ -321,3 +329,52 @@ def test_union_keeps_an_int_as_int() -> None:
     numbers = load(Numbers, {"values": {"samples": 5, "noise": 0.1}})
     assert type(numbers.values["samples"]) is int
     assert type(numbers.values["noise"]) is float
+
+
+# ---------------------------------------------------------------------- finite numbers, ranges
+
+
+@dataclass(frozen=True)
+class Ranged:
+    speed_mps: float = bounded(1.0, gt=0, le=150)
+    count: int = bounded(1, ge=1, le=10)
+    limit_m: float = bounded(math.inf, gt=0, le=100, allow_inf=True)
+    anything: float = 0.0
+    mixed: Mapping[str, float | int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        require(self.speed_mps != 99, "speed_mps", "own check first")
+
+
+@pytest.mark.parametrize(
+    ("data", "key", "message"),
+    [
+        ({"anything": float("nan")}, "anything", "expected a finite number, got nan"),
+        ({"anything": float("inf")}, "anything", "expected a finite number, got inf"),
+        ({"anything": 10**400}, "anything", "too large"),
+        ({"mixed": {"a": float("nan")}}, "mixed.a", "expected a finite number"),
+        ({"speed_mps": 0}, "speed_mps", "must be in (0, 150] m/s, got 0.0"),
+        ({"speed_mps": 1e308}, "speed_mps", "must be in (0, 150] m/s"),
+        ({"count": 11}, "count", "must be in [1, 10], got 11"),
+        ({"limit_m": float("nan")}, "limit_m", "expected a finite number, got nan"),
+        ({"limit_m": 101}, "limit_m", "must be in (0, 100] m"),
+        ({"speed_mps": 99}, "speed_mps", "own check first"),
+    ],
+)
+def test_numbers_are_finite_and_within_their_range(data: Any, key: str, message: str) -> None:
+    exc = error(Ranged, data)
+    assert exc.key_path == key
+    assert message in exc.message
+
+
+def test_a_field_may_allow_infinity() -> None:
+    assert load(Ranged, {"limit_m": float("inf")}).limit_m == math.inf
+    assert load(Ranged, {}).limit_m == math.inf
+
+
+def test_bounds_are_readable() -> None:
+    f = {f.name: f for f in dataclasses.fields(Ranged)}
+    assert field_bounds(f["speed_mps"]) == Bounds(gt=0, le=150, unit="m/s")
+    assert Bounds(ge=0.001, le=1, unit="s").describe() == "in [0.001, 1] s"
+    assert Bounds(ge=0).describe() == ">= 0"
+    assert field_bounds(f["anything"]) is None

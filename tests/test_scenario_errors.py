@@ -91,6 +91,8 @@ class Case:
     text: str | bytes | None = None
     """Raw file content instead of the edited valid scenario."""
     missing_file: bool = False
+    files: tuple[tuple[str, str], ...] = ()
+    """Further files (name, content) written beside the scenario, e.g. route files."""
 
 
 CASES = [
@@ -425,6 +427,286 @@ CASES = [
     ),
 ]
 
+# ---------------------------------------------------------------------- input limits (issue 12)
+
+_BASE_TEXT = f"network: {{net_file: {NET.as_posix()}}}\n"
+
+
+def _alias_bomb() -> str:
+    """A "billion laughs": nine levels of nine aliases each, 9**9 strings if expanded."""
+    lines = ['l0: &l0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    for k in range(1, 10):
+        lines.append(f"l{k}: &l{k} [" + ", ".join([f"*l{k - 1}"] * 9) + "]")
+    return _BASE_TEXT + "description: x\n" + "\n".join(lines) + "\n"
+
+
+#: A route file on the urban grid: a route, a vehicle with its own route, a trip, a flow.
+_GOOD_ROUTES = """<routes>
+  <route id="r0" edges="left1A1 A1B1"/>
+  <vehicle id="v0" depart="0" route="r0"/>
+  <vehicle id="v1" depart="triggered"><route edges="left1A1 A1B1"/></vehicle>
+  <trip id="t0" depart="1:00" from="left1A1" to="A1B1"/>
+  <flow id="f0" begin="0" end="20" from="left1A1" to="A1B1" number="3"/>
+</routes>
+"""
+
+
+def _route_case(name: str, routes: str, expected: tuple[str, ...], hint: str | None = None) -> Case:
+    return Case(
+        name,
+        "traffic.route_files[0]",
+        ("cars.rou.xml", *expected),
+        put("traffic.route_files", ["cars.rou.xml"]),
+        hint=hint,
+        files=(("cars.rou.xml", routes),),
+    )
+
+
+def _laser(overrides: dict[str, Any]) -> Edit:
+    return put("platoons.0.leader.sensor", {"preset": "utm30lx", "overrides": overrides})
+
+
+_SAFE_NAME = ("is not a safe name", "letters, digits")
+
+LIMIT_CASES = [
+    # YAML itself
+    Case(
+        "file_too_large",
+        "<top level>",
+        ("limited to 5 MB",),
+        text=_BASE_TEXT + "# " + "x" * (5 * 2**20) + "\n",
+    ),
+    Case(
+        "nesting_10000_deep_flow",
+        "line 2",
+        ("nesting",),  # libyaml's scanner or our limit, whichever notices first
+        text=_BASE_TEXT + "description: " + "[" * 10_000 + "]" * 10_000 + "\n",
+    ),
+    Case(
+        "nesting_10000_deep_block",
+        "line 3",
+        ("nesting deeper than 50 levels",),
+        text=_BASE_TEXT + "description:\n" + "- " * 10_000 + "x\n",
+    ),
+    Case("alias_bomb", "line 8", ("aliases (*l4)", "more than 100000 nodes"), text=_alias_bomb()),
+    Case(
+        "duplicate_top_level_key",
+        "simulation",
+        ("key given twice", "lines 2 and 4"),
+        text=_BASE_TEXT + "simulation: {end_s: 30}\nplatoons: []\nsimulation: {end_s: 60}\n",
+    ),
+    Case(
+        "duplicate_nested_key",
+        "platoons[0].route",
+        ("key given twice", "lines 4 and 5"),
+        text=_BASE_TEXT + "platoons:\n  - id: ego\n    route: {edges: [left1A1]}\n"
+        "    route: {edges: [A1B1]}\n",
+    ),
+    Case(
+        "python_tag_refused",
+        "line 2",
+        ("not valid YAML", "python/object/apply"),
+        text=_BASE_TEXT + "description: !!python/object/apply:os.system ['echo hi']\n",
+    ),
+    # numbers
+    Case(
+        "begin_minus_infinity",
+        "simulation.begin_s",
+        ("expected a finite number", "-inf"),
+        put("simulation.begin_s", float("-inf")),
+    ),
+    Case(
+        "begin_negative",
+        "simulation.begin_s",
+        ("must be in [0, 10000000] s",),
+        put("simulation.begin_s", -5),
+    ),
+    Case(
+        "step_below_sumo_resolution",
+        "simulation.step_s",
+        ("must be in [0.001, 1] s", "1e-09"),
+        put("simulation.step_s", 1e-9),
+    ),
+    Case(
+        "seed_beyond_sumo_integers",
+        "simulation.seed",
+        ("must be in [0, 2147483647]",),
+        put("simulation.seed", 2**70),
+    ),
+    Case(
+        "end_integer_beyond_floats",
+        "simulation.end_s",
+        ("expected a finite number", "too large"),
+        put("simulation.end_s", 10**400),
+    ),
+    Case(
+        "end_absurdly_late",
+        "simulation.end_s",
+        ("must be in (0, 10000000] s",),
+        put("simulation.end_s", 1e12),
+    ),
+    Case(
+        "random_trips_end_1e308",
+        "traffic.random_trips.end_s",
+        ("must be in (0, 10000000] s", "1e+308"),
+        put("traffic.random_trips", {"period_s": 2.0, "end_s": 1e308}),
+    ),
+    Case(
+        "random_trips_end_after_simulation",
+        "traffic.random_trips.end_s",
+        ("after the simulation's end (30 s)",),
+        put("traffic.random_trips", {"period_s": 2.0, "end_s": 100}),
+        hint="simulation.end_s",
+    ),
+    Case(
+        "random_trips_period_tiny",
+        "traffic.random_trips.period_s",
+        ("must be in [0.01, 10000000] s",),
+        put("traffic.random_trips", {"period_s": 1e-9}),
+    ),
+    Case(
+        "flow_end_after_simulation",
+        "traffic.flows[0].end_s",
+        ("after the simulation's end",),
+        put(
+            "traffic.flows",
+            [{"from_edge": "left1A1", "to_edge": "A0left0", "vehs_per_hour": 100, "end_s": 1e6}],
+        ),
+    ),
+    Case(
+        "flow_rate_absurd",
+        "traffic.flows[0].vehs_per_hour",
+        ("must be in (0, 100000]",),
+        put(
+            "traffic.flows",
+            [{"from_edge": "left1A1", "to_edge": "A0left0", "vehs_per_hour": 1e9}],
+        ),
+    ),
+    Case(
+        "laser_ten_million_samples",
+        "platoons[0].leader.sensor.overrides.samples",
+        ("an integer <= 20000", "10000000"),
+        _laser({"samples": 10_000_000}),
+    ),
+    Case(
+        "laser_noise_infinite",
+        "platoons[0].leader.sensor.overrides.noise_std_m",
+        ("expected a finite number", "inf"),
+        _laser({"noise_std_m": float("inf")}),
+    ),
+    Case(
+        "platoon_max_speed_1e308",
+        "platoons[0].vehicle.max_speed_mps",
+        ("must be in (0, 150] m/s", "1e+308"),
+        put("platoons.0.vehicle.max_speed_mps", 1e308),
+    ),
+    Case(
+        "platoon_vehicle_too_long",
+        "platoons[0].vehicle.length_m",
+        ("must be in (0, 50] m",),
+        put("platoons.0.vehicle.length_m", 60),
+    ),
+    Case(
+        "vehicle_type_speed_dev_nan",
+        "traffic.vehicle_types[0].speed_dev",
+        ("expected a finite number", "nan"),
+        put("traffic.vehicle_types.0.speed_dev", float("nan")),
+    ),
+    Case(
+        "vehicle_type_max_speed_huge",
+        "traffic.vehicle_types[0].max_speed_mps",
+        ("must be in (0, 150] m/s",),
+        put("traffic.vehicle_types.0.max_speed_mps", 1e308),
+    ),
+    Case(
+        "controller_param_nan",
+        "platoons[0].leader.params.comfort_decel_mps2",
+        ("expected a finite number", "nan"),
+        put("platoons.0.leader.params", {"comfort_decel_mps2": float("nan")}),
+    ),
+    Case(
+        "controller_param_out_of_upper_range",
+        "platoons[0].leader.params.cruise_speed_mps",
+        ("must be in (0, 150] m/s",),
+        put("platoons.0.leader.params", {"cruise_speed_mps": 1000}),
+    ),
+    Case(
+        "supervisor_decel_absurd",
+        "platoons[0].supervisor.comfort_decel_mps2",
+        ("must be in (0, 50] m/s²",),
+        put("platoons.0.supervisor", {"comfort_decel_mps2": 1e6}),
+    ),
+    # names that become file names
+    Case("scenario_name_escapes", "name", ("'../../x'", *_SAFE_NAME), put("name", "../../x")),
+    Case(
+        "platoon_id_with_slash",
+        "platoons[0].id",
+        ("'a/b'", *_SAFE_NAME),
+        put("platoons.0.id", "a/b"),
+    ),
+    Case(
+        "vehicle_type_id_with_slash",
+        "traffic.vehicle_types[0].id",
+        ("'c/d'", *_SAFE_NAME),
+        put("traffic.vehicle_types.0.id", "c/d"),
+    ),
+    Case("platoon_id_too_long", "platoons[0].id", _SAFE_NAME, put("platoons.0.id", "p" * 65)),
+    Case(
+        "sensor_name_with_slash",
+        "platoons[0].leader.sensors[0].name",
+        ("'x/y'", *_SAFE_NAME),
+        put("platoons.0.leader.sensors", [{"type": "laser", "name": "x/y"}]),
+    ),
+    # route and additional files
+    _route_case(
+        "route_file_unknown_edge",
+        _GOOD_ROUTES.replace('left1A1 A1B1"/></vehicle>', 'left1A1 A1B9"/></vehicle>'),
+        ("vehicle 'v1'", "unknown edge 'A1B9'"),
+        hint="did you mean 'A1B1'?",
+    ),
+    _route_case(
+        "route_file_trip_unknown_from",
+        _GOOD_ROUTES.replace('from="left1A1" to="A1B1"/>', 'from="nowhere" to="A1B1"/>'),
+        ("trip 't0'", "from: unknown edge 'nowhere'"),
+    ),
+    _route_case(
+        "route_file_flow_nan_begin",
+        _GOOD_ROUTES.replace('flow id="f0" begin="0"', 'flow id="f0" begin="nan"'),
+        ("flow 'f0'", "begin='nan' is not a finite time"),
+    ),
+    _route_case(
+        "route_file_not_well_formed",
+        _GOOD_ROUTES[:120],
+        ("cannot be read as XML", "not well-formed", "line 4"),
+    ),
+    Case(
+        "additional_file_not_well_formed",
+        "network.additional_files[0]",
+        ("walls.add.xml", "cannot be read as XML", "not well-formed", "line 3"),
+        put("network.additional_files", ["walls.add.xml"]),
+        files=(
+            (
+                "walls.add.xml",
+                '<additional>\n<poly id="w" type="wall" shape="0,0 1,1"/>\n<poly id="x" \n',
+            ),
+        ),
+    ),
+    Case(
+        "additional_file_bad_shape",
+        "network.additional_files[0]",
+        ("walls.add.xml", "poly 'w'", "finite x,y points"),
+        put("network.additional_files", ["walls.add.xml"]),
+        files=(
+            (
+                "walls.add.xml",
+                '<additional><poly id="w" type="wall" shape="0,0 a,b"/></additional>',
+            ),
+        ),
+    ),
+]
+
+CASES += LIMIT_CASES
+
 RUN_CASES = {
     "unknown_nested_key",
     "negative_step",
@@ -434,6 +716,14 @@ RUN_CASES = {
     "unknown_controller",
     "plugin_module_fails_to_import",
     "impossible_platoon",
+    "duplicate_top_level_key",
+    "alias_bomb",
+    "step_below_sumo_resolution",
+    "random_trips_end_1e308",
+    "scenario_name_escapes",
+    "route_file_unknown_edge",
+    "route_file_flow_nan_begin",
+    "additional_file_not_well_formed",
 }
 
 
@@ -448,6 +738,8 @@ def plugins_on_path(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def write_case(case: Case, directory: Path) -> Path:
     path = directory / FILE_NAME
+    for name, content in case.files:
+        (directory / name).write_text(content, encoding="utf-8")
     if case.missing_file:
         return path
     if case.text is not None:
@@ -611,3 +903,81 @@ def test_integer_laser_override_is_accepted(
     code = main(["validate", str(path)])
     _, err = capfd.readouterr()
     assert code == 0, err
+
+
+# ---------------------------------------------------------------------- limits: cost, shipped files
+
+
+@pytest.mark.parametrize(
+    "text",
+    [_alias_bomb(), _BASE_TEXT + "description:\n" + "- " * 10_000 + "x\n"],
+    ids=["alias_bomb", "deep_nesting"],
+)
+def test_hostile_yaml_is_refused_quickly_in_little_memory(tmp_path: Path, text: str) -> None:
+    import time
+    import tracemalloc
+
+    from platoon_sumo.errors import ScenarioError
+    from platoon_sumo.scenario import load_scenario
+
+    path = tmp_path / FILE_NAME
+    path.write_text(text, encoding="utf-8")
+    tracemalloc.start()
+    started = time.perf_counter()
+    try:
+        with pytest.raises(ScenarioError):
+            load_scenario(path)
+        elapsed = time.perf_counter() - started
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert elapsed < 2.0
+    assert peak < 50 * 2**20
+
+
+def test_run_rejects_seed_override_beyond_sumo(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / FILE_NAME
+    path.write_text(yaml.safe_dump(valid_scenario(), sort_keys=False), encoding="utf-8")
+    out_dir = tmp_path / "out"
+    code = main(["run", str(path), "--out", str(out_dir), "--quiet", "--seed", str(2**40)])
+    _, err = capfd.readouterr()
+    assert code == 2
+    assert_one_line_error(
+        err, Case("seed_override", "simulation.seed", ("--seed must be in [0, 2147483647]",))
+    )
+    assert not (out_dir / "summary.json").exists()
+
+
+def test_default_name_from_an_unsafe_file_name_is_made_safe(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    from platoon_sumo.scenario import load_scenario
+
+    path = tmp_path / "my scenario (v2).yaml"
+    path.write_text(yaml.safe_dump(valid_scenario(), sort_keys=False), encoding="utf-8")
+    assert load_scenario(path).scenario.name == "my_scenario__v2"
+
+
+def test_route_file_that_is_fine_validates(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    data = valid_scenario()
+    data["traffic"]["route_files"] = ["cars.rou.xml"]
+    (tmp_path / "cars.rou.xml").write_text(_GOOD_ROUTES, encoding="utf-8")
+    path = tmp_path / "good.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    code = main(["validate", str(path)])
+    _, err = capfd.readouterr()
+    assert code == 0, err
+
+
+@pytest.mark.parametrize(
+    "scenario", sorted((ROOT / "scenarios").glob("*.yaml")), ids=lambda p: p.stem
+)
+def test_shipped_scenarios_validate(scenario: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    code = main(["validate", str(scenario)])
+    _, err = capfd.readouterr()
+    assert code == 0, err
+    assert "error" not in err

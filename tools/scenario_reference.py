@@ -29,10 +29,18 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, Union, get_args, get_origin, get_type_hints
 
+from platoon_sumo.config_loader import field_bounds
 from platoon_sumo.control import CONTROLLERS
-from platoon_sumo.scenario import CAR_FOLLOW_MODELS, Scenario
-from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
+from platoon_sumo.scenario import CAR_FOLLOW_MODELS, SAFE_ID_TEXT, Scenario
+from platoon_sumo.sensors.laser import (
+    LASER_PRESETS,
+    MAX_RANGE_M,
+    MAX_RATE_HZ,
+    MAX_SAMPLES,
+    LaserConfig,
+)
 from platoon_sumo.vehicles import VEHICLE_MODELS
+from platoon_sumo.yaml_input import MAX_ALIAS_NODES, MAX_BYTES, MAX_DEPTH
 
 ROOT = Path(__file__).resolve().parent.parent
 OUTPUT = ROOT / "docs" / "scenarios.md"
@@ -48,7 +56,7 @@ _DEFAULT_OVERRIDES = {
 # A docstring in the code always wins; `python tools/scenario_reference.py` lists the
 # fields that still rely on this table, and the entries made redundant by a docstring.
 
-INTRO = """\
+INTRO = f"""\
 # Scenario files
 
 A scenario is one YAML file: the network, the human-driven traffic, the platoons and
@@ -77,6 +85,23 @@ Rules that hold for every key:
   defaults; leave it out to take them all.
 - `null` means "not set" (YAML `null` or `~`); numbers may be written as integers where
   a number is expected.
+- **Numbers are finite**: `.nan` is refused everywhere, `.inf` and `-.inf` too unless a
+  key's meaning says infinity is allowed. Every numeric key has an allowed range, shown
+  as "Range:" in its meaning (a unit follows it); a value outside it is an error naming
+  the key and the range. Beyond the ranges: random trips and flows begin and end no
+  later than `simulation.end_s`, and `run --end` / `--seed` are held to the same ranges.
+- **Limits of the file**: at most {MAX_BYTES // 2**20} MB, mappings and lists nested at
+  most {MAX_DEPTH} deep, and aliases (`*name`) repeating at most {MAX_ALIAS_NODES} nodes
+  in all (an "alias bomb" is refused before it is expanded). A key given twice in one
+  mapping is an error naming it (YAML would keep the last one silently); merge keys
+  (`<<:`) may still be overridden. Tags that build Python objects (`!!python/...`) are
+  refused.
+- **Names that become file names** (`name`, `platoons[].id`,
+  `traffic.vehicle_types[].id`, sensor `name`s) use {SAFE_ID_TEXT}.
+- **Route and additional files** are read before SUMO starts: a file that is not
+  well-formed XML, a route, trip or flow naming an edge the network lacks, a `begin`,
+  `end` or `depart` that is not a finite time, or a `<poly>` shape that is not a list of
+  points is an error naming the scenario key, the file and the vehicle (or polygon).
 """
 
 
@@ -216,6 +241,10 @@ def sections(cls: type, path: str = "") -> Iterator[Section]:
         default = _DEFAULT_OVERRIDES.get(key) or _default(f, tp)
         child = _item_dataclass(tp)
         doc = docs.get(f.name, "")
+        bounds = field_bounds(f)
+        if bounds is not None:
+            infinite = " (or `.inf`)" if f.metadata.get("allow_inf") else ""
+            doc = f"{doc} Range: {bounds.describe().removeprefix('in ')}{infinite}.".strip()
         if child is not None:
             is_list = get_origin(tp) in (tuple, list)
             child_path = f"{key}[]" if is_list else key
@@ -293,6 +322,11 @@ def render() -> str:
     out += [""]
 
     out += laser_section()
+    out += [
+        f"Laser limits: `samples` in [2, {MAX_SAMPLES}], `range_max_m` <= {MAX_RANGE_M:g} m, "
+        f"`rate_hz` in (0, {MAX_RATE_HZ:g}] Hz; all fields finite.",
+        "",
+    ]
 
     out += [
         "## Example",

@@ -77,7 +77,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 
-from platoon_sumo.config_loader import require, require_choice, require_positive
+from platoon_sumo.config_loader import bounded, require, require_choice, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
 from platoon_sumo.control.perception import (
     PerceptionParams,
@@ -115,28 +115,28 @@ class LaserFollowerParams:
 
     policy: Literal["constant_distance", "constant_time_gap"] = "constant_time_gap"
     """Spacing policy: gap = standstill_gap_m (+ time_gap_s * speed for a time gap)."""
-    standstill_gap_m: float = 2.5
+    standstill_gap_m: float = bounded(2.5, ge=0, le=1000)
     """Bumper-to-rear gap at standstill, or always with constant_distance [m] (robots 0.35)."""
-    time_gap_s: float = 1.0
+    time_gap_s: float = bounded(1.0, ge=0, le=100)
     """Time gap of the constant_time_gap policy [s] (robots 0.6)."""
-    k_gap_1ps2: float = 0.3
+    k_gap_1ps2: float = bounded(0.3, gt=0, le=100)
     """Acceleration per metre of gap error [1/s^2] (robots 0.3-1)."""
-    k_rate_1ps: float = 0.8
+    k_rate_1ps: float = bounded(0.8, ge=0, le=100)
     """Acceleration per m/s of range rate [1/s] (robots 0.8-1.5)."""
-    min_gap_m: float = 1.0
+    min_gap_m: float = bounded(1.0, ge=0, le=1000)
     """Hard floor: full stop when anything is this close ahead; safe speed keeps it [m]
     (robots 0.15)."""
-    comfort_decel_mps2: float = 2.5
+    comfort_decel_mps2: float = bounded(2.5, gt=0, le=50)
     """Deceleration of the safe-speed term and of the stop when lost [m/s^2] (robots 0.5)."""
-    reaction_time_s: float = 0.5
+    reaction_time_s: float = bounded(0.5, ge=0, le=100)
     """Reaction time of the Krauss-style safe speed [s]."""
-    lookahead_min_m: float = 4.0
+    lookahead_min_m: float = bounded(4.0, gt=0, le=1000)
     """Shortest pure-pursuit look-ahead [m] (robots 0.3)."""
-    lookahead_time_s: float = 0.5
+    lookahead_time_s: float = bounded(0.5, ge=0, le=100)
     """Look-ahead = max(lookahead_min_m, lookahead_time_s * speed) [s]."""
-    trail_spacing_m: float = 0.5
+    trail_spacing_m: float = bounded(0.5, gt=0, le=1000)
     """Distance between stored trail points [m] (robots 0.02)."""
-    max_trail_points: int = 4000
+    max_trail_points: int = bounded(4000, ge=2, le=100_000)
     """Oldest trail points are dropped beyond this many."""
     steer_at: Literal["trail", "predecessor"] = "trail"
     """Pure pursuit on the predecessor's trail, or straight at its current rear."""
@@ -145,17 +145,17 @@ class LaserFollowerParams:
     leave_junctions: bool = True
     """Lost with the body in a junction, or where a comfortable stop would end in one,
     drive out on the own route before stopping (False: stop wherever lost)."""
-    predecessor_width_m: float | None = None
+    predecessor_width_m: float | None = bounded(None, gt=0, le=20)
     """Expected rear width of the predecessor [m]; None: the follower's own width."""
     corridor_half_width_m: float | Literal["lane"] | None = "lane"
     """Half-width of the own route's corridor in which a predecessor is tracked and its
     trail followed [m]; "lane": half the lane width at the rear's point of the route plus
     ``corridor_margin_rel`` lane widths (scales with the network: cars and robots);
     None: no corridor (any vehicle in the start gate, followed anywhere)."""
-    corridor_margin_rel: float = 0.2
+    corridor_margin_rel: float = bounded(0.2, ge=0, le=10)
     """Margin of the "lane" corridor beyond half the lane width, in lane widths
     (3.2 m lanes: 2.24 m half-width; the paper world's 0.5 m lanes: 0.35 m)."""
-    corridor_exit_s: float = 0.5
+    corridor_exit_s: float = bounded(0.5, ge=0, le=100)
     """A track whose rear stays outside the corridor longer than this is dropped [s]."""
     perception: PerceptionParams = field(default_factory=PerceptionParams)
     tracker: TrackerParams = field(default_factory=TrackerParams)

@@ -20,7 +20,7 @@ from typing import ClassVar, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.config_loader import require, require_positive
+from platoon_sumo.config_loader import bounded, require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.sensors.laser import LaserScan
 
@@ -68,21 +68,21 @@ def region_minima(ranges: FloatArray, range_min_m: float) -> Regions:
 class PaperLeaderParams:
     """Algorithm 1's thresholds and velocities; thresholds are multiplied by ``scale``."""
 
-    near_m: float = 1.0
+    near_m: float = bounded(1.0, gt=0, le=1000)
     """The paper's ``1`` (Front, Fleft and Fright in rules 1, 3, 4, 5, 6)."""
-    front_far_m: float = 2.0
+    front_far_m: float = bounded(2.0, gt=0, le=1000)
     """The paper's ``Front < 2`` (rule 2)."""
-    fleft_far_m: float = 3.0
+    fleft_far_m: float = bounded(3.0, gt=0, le=1000)
     """The paper's ``Fleft < 3`` (rule 2)."""
-    fright_clear_m: float = 0.5
+    fright_clear_m: float = bounded(0.5, gt=0, le=1000)
     """The paper's ``Fright > 0.5`` / ``Fright < 0.5`` (rules 1, 2, 6)."""
-    fright_wide_m: float = 0.7
+    fright_wide_m: float = bounded(0.7, gt=0, le=1000)
     """The paper's ``Fright > 0.7`` (rule 5; unreachable in the paper's order, see docs)."""
-    scale: float = 1.0
+    scale: float = bounded(1.0, gt=0, le=1000)
     """Multiplies every threshold above, to fit the rules to a world's lane width."""
-    linear_mps: float = 0.1
+    linear_mps: float = bounded(0.1, ge=0, le=150)
     """The paper's ``linearVel = 0.1`` [m/s]."""
-    angular_radps: float = 0.1
+    angular_radps: float = bounded(0.1, ge=0, le=50)
     """Magnitude of the paper's ``angularVel = +-0.1`` [rad/s]."""
     turn_sign: float = -1.0
     """ROS yaw rate = ``turn_sign`` x the paper's angularVel. ``-1`` (default): the
@@ -257,24 +257,24 @@ def arc_length(distance_m: float, theta_rad: float) -> float:
 class PaperFollowerParams:
     """Algorithm 2's constants and the readings it needs to become a velocity command."""
 
-    jump_threshold_m: float = 0.5
+    jump_threshold_m: float = bounded(0.5, gt=0, le=1000)
     """Line 2: consecutive ranges differing by more than this are a discontinuity [m]."""
-    stand_off_m: float = 0.1
+    stand_off_m: float = bounded(0.1, ge=0, le=1000)
     """Line 20: move only while ``distClose > stand_off_m``, else stop [m]. The paper's
     0.1 m is below the paper's follower range_min (0.3 m): see docs/paper.md."""
-    arc_time_s: float = 1.0
+    arc_time_s: float = bounded(1.0, gt=0, le=100)
     """Line 24's ``linvel = r * theta`` is a length; speed = that arc / ``arc_time_s``."""
-    angular_gain_per_s: float = 1.0
+    angular_gain_per_s: float = bounded(1.0, ge=0, le=100)
     """Line 22 read in SI: yaw rate = gain x bearing theta [1/s]."""
     fov_edges: bool = True
     """The ends of the field of view bound an object like a discontinuity does (a
     0.25 m wide predecessor fills the +-11.5 deg view when closer than 0.61 m)."""
-    min_width_m: float = 0.0
+    min_width_m: float = bounded(0.0, ge=0, le=100)
     """Objects narrower than this (edge to edge) are not the predecessor [m]."""
-    max_width_m: float = math.inf
+    max_width_m: float = bounded(math.inf, gt=0, le=100, allow_inf=True)
     """Objects wider than this are not the predecessor [m] (the paper measures the
     predecessor's width but states no bound: no filter by default)."""
-    max_speed_mps: float = math.inf
+    max_speed_mps: float = bounded(math.inf, gt=0, le=150, allow_inf=True)
     """Optional cap on the commanded speed [m/s] (the vehicle model applies its own)."""
 
     def __post_init__(self) -> None:

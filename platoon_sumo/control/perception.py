@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.config_loader import require, require_positive
+from platoon_sumo.config_loader import bounded, require, require_positive
 from platoon_sumo.kernels.perception import (
     CANDIDATE_COLUMNS,
     STATE_SIZE,
@@ -69,20 +69,20 @@ IntArray = NDArray[np.intp]
 class PerceptionParams:
     """Segmentation and rear fitting. Robot scale: ``break_abs_m=0.03, corner_abs_m=0.01``."""
 
-    break_abs_m: float = 0.1
+    break_abs_m: float = bounded(0.1, ge=0, le=100)
     """Constant part of the break distance between consecutive hits, about 3 noise std
     [m] (robots: 0.03)."""
-    break_angle_deg: float = 10.0
+    break_angle_deg: float = bounded(10.0, gt=0, lt=90)
     """Most grazing incidence on a surface still kept in one cluster [deg]."""
-    max_dropout_gap: int = 2
+    max_dropout_gap: int = bounded(2, ge=0, le=1000)
     """Longest run of NaN dropouts bridged inside one cluster [samples]."""
-    min_points: int = 3
+    min_points: int = bounded(3, ge=2, le=10_000)
     """Clusters with fewer hits are ignored."""
-    corner_abs_m: float = 0.08
+    corner_abs_m: float = bounded(0.08, gt=0, le=100)
     """An L-shape needs its corner at least this far off the chord [m] (robots: 0.01) ..."""
-    corner_rel: float = 0.05
+    corner_rel: float = bounded(0.05, ge=0, le=10)
     """... and at least this fraction of the chord length."""
-    max_width_factor: float = 1.6
+    max_width_factor: float = bounded(1.6, ge=1, le=100)
     """Rears wider than this times the expected width are not vehicles (walls)."""
 
     def __post_init__(self) -> None:
@@ -100,24 +100,24 @@ class TrackerParams:
     """Rear tracker. Robot scale: ``accel_noise_mps2=1.0, meas_noise_m=0.01,
     start_range_max_m=1.5, start_lateral_m=0.2, init_speed_std_mps=0.3``."""
 
-    accel_noise_mps2: float = 4.0
+    accel_noise_mps2: float = bounded(4.0, gt=0, le=100)
     """Std of the white acceleration driving the constant-velocity model [m/s^2]
     (robots: 1.0)."""
-    meas_noise_m: float = 0.1
+    meas_noise_m: float = bounded(0.1, gt=0, le=100)
     """Std of a rear-centre measurement [m] (doubled when the rear is not fully seen)."""
-    gate_chi2: float = 13.8
+    gate_chi2: float = bounded(13.8, gt=0, le=1e6)
     """Mahalanobis gate on the 2-D innovation (13.8 = 99.9 %)."""
-    start_range_max_m: float = 30.0
+    start_range_max_m: float = bounded(30.0, gt=0, le=1000)
     """Start gate: a new track starts on a rear at most this far ahead [m] ..."""
-    start_lateral_m: float = 1.5
+    start_lateral_m: float = bounded(1.5, gt=0, le=100)
     """... and at most this far left or right of the sensor's axis [m]."""
-    init_speed_std_mps: float = 3.0
+    init_speed_std_mps: float = bounded(3.0, gt=0, le=150)
     """Std of the initial velocity (initialised to the follower's own) [m/s]."""
-    confirm_scans: int = 3
+    confirm_scans: int = bounded(3, ge=1, le=1000)
     """Consecutive hits before a new track is trusted."""
-    max_missed_scans: int = 10
+    max_missed_scans: int = bounded(10, ge=0, le=100_000)
     """The track is lost after this many consecutive scans without a hit ..."""
-    lost_after_s: float = 1.0
+    lost_after_s: float = bounded(1.0, gt=0, le=10_000)
     """... or this long without a hit [s], whichever comes first."""
 
     def __post_init__(self) -> None:

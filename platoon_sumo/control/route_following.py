@@ -20,7 +20,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from platoon_sumo.config_loader import require, require_positive
+from platoon_sumo.config_loader import bounded, require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
 from platoon_sumo.kernels.route import STEP_LANE_UNREAD, STEP_NOT_FINITE, route_step_kernel
@@ -30,27 +30,27 @@ from platoon_sumo.vehicles import MotionLimits
 
 @dataclass(frozen=True)
 class RouteFollowingParams:
-    lookahead_min_m: float = 4.0
+    lookahead_min_m: float = bounded(4.0, gt=0, le=1000)
     """Shortest pure-pursuit look-ahead; robots want about their own length."""
-    lookahead_time_s: float = 0.8
+    lookahead_time_s: float = bounded(0.8, gt=0, le=100)
     """Look-ahead grows with speed: lookahead = max(min, time * speed)."""
-    max_lateral_accel_mps2: float = 2.0
+    max_lateral_accel_mps2: float = bounded(2.0, gt=0, le=50)
     """Curve speed limit: v <= sqrt(a_lat / curvature)."""
-    comfort_decel_mps2: float = 2.5
+    comfort_decel_mps2: float = bounded(2.5, gt=0, le=50)
     """Deceleration planned for curves, speed limits and signals."""
-    yellow_max_decel_mps2: float = 4.0
+    yellow_max_decel_mps2: float = bounded(4.0, gt=0, le=50)
     """On yellow, stop only if it takes at most this deceleration; else drive through."""
-    stop_margin_m: float = 1.0
+    stop_margin_m: float = bounded(1.0, ge=0, le=100)
     """Front bumper stops this far before the stop line."""
-    cruise_speed_mps: float | None = None
+    cruise_speed_mps: float | None = bounded(None, gt=0, le=150)
     """Optional cap below the lane speed limits (the paper's leader drives 0.1 m/s)."""
-    speed_limit_factor: float = 1.0
+    speed_limit_factor: float = bounded(1.0, gt=0, le=2)
     """Share of the lane speed limit to drive at."""
-    curvature_smoothing_m: float = 3.0
+    curvature_smoothing_m: float = bounded(3.0, gt=0, le=1000)
     """Arc length over which the path curvature is averaged for the speed profile."""
-    standstill_gap_m: float = 2.5
+    standstill_gap_m: float = bounded(2.5, ge=0, le=1000)
     """Bumper-to-bumper gap kept to a stopped vehicle ahead."""
-    time_gap_s: float = 1.2
+    time_gap_s: float = bounded(1.2, ge=0, le=100)
     """Reaction time of the car-following term (Krauss-style safe speed)."""
 
     def __post_init__(self) -> None:

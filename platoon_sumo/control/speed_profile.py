@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-from platoon_sumo.config_loader import require, require_choice, require_positive
+from platoon_sumo.config_loader import bounded, require, require_choice, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 
@@ -37,23 +37,23 @@ class SpeedProfileParams:
 
     profile: Literal["constant", "sinusoid", "brake", "stop_and_go"] = "sinusoid"
     """Shape of the profile (see the module docstring)."""
-    cruise_speed_mps: float = 15.0
+    cruise_speed_mps: float = bounded(15.0, gt=0, le=150)
     """Speed before, between and after the disturbances [m/s]."""
-    start_s: float = 30.0
+    start_s: float = bounded(30.0, ge=0, le=10_000_000)
     """Warm-up at cruise speed before the first disturbance [s]."""
-    amplitude_mps: float = 3.0
+    amplitude_mps: float = bounded(3.0, ge=0, le=150)
     """Sinusoid amplitude [m/s]."""
-    period_s: float = 10.0
+    period_s: float = bounded(10.0, gt=0, le=10_000_000)
     """Sinusoid period, or time between stop-and-go cycles [s]."""
-    cycles: int | None = None
+    cycles: int | None = bounded(None, ge=1, le=1_000_000)
     """Number of sinusoid periods or stop-and-go cycles; None: until the run ends."""
-    low_speed_mps: float = 0.0
+    low_speed_mps: float = bounded(0.0, ge=0, le=150)
     """Speed the brake and stop-and-go profiles brake down to [m/s]."""
-    decel_mps2: float = 6.0
+    decel_mps2: float = bounded(6.0, gt=0, le=50)
     """Deceleration of the brake and stop-and-go profiles [m/s²]."""
-    accel_mps2: float = 1.5
+    accel_mps2: float = bounded(1.5, gt=0, le=50)
     """Acceleration back to cruise speed [m/s²]."""
-    hold_s: float = 5.0
+    hold_s: float = bounded(5.0, ge=0, le=10_000_000)
     """Time spent at `low_speed_mps` [s]."""
     route: RouteFollowingParams = field(default_factory=RouteFollowingParams)
     """Steering, signals and vehicle-ahead behaviour (route_following's parameters)."""

@@ -12,7 +12,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from platoon_sumo.config_loader import FieldError
 from platoon_sumo.errors import did_you_mean
+
+#: Most rays a scanner may have (a UTM-30LX has 1081; each ray costs memory and time).
+MAX_SAMPLES = 20_000
+#: Longest range a scanner may have [m].
+MAX_RANGE_M = 1000.0
+#: Highest scan rate [Hz].
+MAX_RATE_HZ = 1000.0
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -40,9 +48,9 @@ class LaserConfig:
     mount_yaw_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        def bad(name: str, expected: str) -> ValueError:
+        def bad(name: str, expected: str) -> FieldError:
             value = getattr(self, name)
-            return ValueError(f"LaserConfig.{name}: expected {expected}, got {value!r}")
+            return FieldError(name, f"LaserConfig.{name}: expected {expected}, got {value!r}")
 
         for name in (
             "angle_min_rad",
@@ -62,6 +70,8 @@ class LaserConfig:
             raise bad("samples", "an integer >= 2")
         if self.samples < 2:
             raise bad("samples", "an integer >= 2")
+        if self.samples > MAX_SAMPLES:
+            raise bad("samples", f"an integer <= {MAX_SAMPLES}")
         if self.angle_max_rad <= self.angle_min_rad:
             raise bad("angle_max_rad", f"> angle_min_rad ({self.angle_min_rad})")
         if self.angle_max_rad - self.angle_min_rad > 2.0 * math.pi:
@@ -74,8 +84,12 @@ class LaserConfig:
             raise bad("noise_std_m", ">= 0")
         if not 0.0 <= self.dropout_prob < 1.0:
             raise bad("dropout_prob", "a probability in [0, 1)")
+        if self.range_max_m > MAX_RANGE_M:
+            raise bad("range_max_m", f"<= {MAX_RANGE_M:g} m")
         if self.rate_hz <= 0.0:
             raise bad("rate_hz", "> 0")
+        if self.rate_hz > MAX_RATE_HZ:
+            raise bad("rate_hz", f"<= {MAX_RATE_HZ:g} Hz")
 
     @property
     def angle_increment_rad(self) -> float:
