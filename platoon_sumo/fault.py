@@ -36,6 +36,8 @@ SIDEWAYS_MPS = 0.3
 BESIDE_SHARE = 0.5
 #: Closing speeds closer than this are a tie [m/s].
 TIE_MPS = 0.1
+#: A contact point this close to a body's centre gives it no direction [m].
+AT_CENTRE_M = 1e-3
 #: A contact this far forward of the body's centre (share of half the length) is on its front.
 FRONT_SHARE = 0.5
 
@@ -92,10 +94,13 @@ def contact_fault(
         return math.copysign(1.0, side) * (velocity[i][0] * nx + velocity[i][1] * ny)
 
     def closing(i: int) -> float:
-        """Speed of vehicle i towards the contact."""
+        """Speed of vehicle i towards the contact (none when the contact lies at its
+        centre, where the direction to it is rounding noise)."""
         dx, dy = cx - rects[i, CX], cy - rects[i, CY]
         norm = math.hypot(dx, dy)
-        return (velocity[i][0] * dx + velocity[i][1] * dy) / norm if norm > 0.0 else 0.0
+        if norm < AT_CENTRE_M:
+            return 0.0
+        return (velocity[i][0] * dx + velocity[i][1] * dy) / norm
 
     def struck_with_front(i: int) -> bool:
         c, s = math.cos(rects[i, YAW]), math.sin(rects[i, YAW])

@@ -488,7 +488,10 @@ class PlatoonConfig:
             "id", "must be a non-empty name without spaces or dots",
         )  # fmt: skip
         require_safe_id(self.id, "id")
-        require_choice(self.actuation, ACTUATORS.names(), "actuation")
+        try:  # a registered name, or a plug-in's `package.module:Class`
+            ACTUATORS.get(self.actuation)
+        except LookupError as exc:
+            raise FieldError("actuation", str(exc)) from None
         require(self.members >= 1, "members", "must be >= 1")
         require(self.members <= 100, "members", "must be <= 100")
         require(self.spacing_m > 0, "spacing_m", "must be > 0")

@@ -128,3 +128,12 @@ def test_a_rear_end_a_little_off_centre_is_the_follower_even_with_heading_noise(
     leader, follower = car(4.4, 0.3, -0.021), car(0.0, 0.0)
     fault = contact_fault(follower, leader, 30.0, 20.0, 0.0, 0.0)
     assert (fault.at_fault, fault.reason) == (0, FRONT)
+
+
+def test_a_contact_at_a_cars_centre_gives_the_same_answer_in_either_order():
+    """Deep overlap with the contact's centroid on one car's centre (found by hypothesis):
+    the direction to the contact is rounding noise and must not decide."""
+    a, b = car(0.0, 0.0), car(0.59375, 0.0, 2.0)
+    base = contact_fault(a, b, 0.0, 1.0, 0.0, None)
+    swapped = contact_fault(b, a, 1.0, 0.0, None, 0.0)
+    assert swapped.at_fault == (None if base.at_fault is None else 1 - base.at_fault)

@@ -257,6 +257,37 @@ def test_a_raising_controllers_traceback_is_in_failed_txt(tmp_path, capsys, monk
     assert "Traceback" in failed and "failing_controller.py" in failed  # for its author
 
 
+def test_a_crashing_actuation_plugin_is_named_with_its_platoon_and_time(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    data = scenario()
+    data["platoons"][0]["actuation"] = "crashing_actuator:CrashingLane"
+    out = tmp_path / "out"
+    assert main(["run", str(write(tmp_path, data)), "--out", str(out), "--quiet"]) == 1
+    one_error_line(capsys, "crashing_actuator.CrashingLane", "platoon 'p'", "t=1.", "KeyError")
+    assert "Traceback" in (out / "FAILED.txt").read_text()
+
+
+def test_an_internal_error_is_one_line_with_the_traceback_in_failed_txt(
+    tmp_path, capsys, monkeypatch
+):
+    import platoon_sumo.runner
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        raise RuntimeError("a bug of ours")
+
+    monkeypatch.setattr(platoon_sumo.runner, "summary_tables", broken)
+    out = tmp_path / "out"
+    assert main(["run", str(write(tmp_path, scenario())), "--out", str(out), "--quiet"]) == 1
+    one_error_line(capsys, "internal error", "RuntimeError: a bug of ours", "please report")
+    assert "a bug of ours" in (out / "FAILED.txt").read_text()
+    assert json.loads((out / MANIFEST).read_text())["status"] == "failed"
+    monkeypatch.setenv("PLATOON_SUMO_TRACEBACK", "1")
+    with pytest.raises(RuntimeError, match="a bug of ours"):
+        main(["run", str(write(tmp_path, scenario())), "--out", str(out), "--quiet"])
+
+
 # -- report and compare trust nothing ----------------------------------------------------
 
 
