@@ -467,7 +467,9 @@ class PlatoonConfig:
     `sublane`: SUMO drives the speed as in `lane`, and the controller's heading moves the
     car sideways within and across lanes through SUMO's sublane model (needs
     `simulation.lateral_resolution_m`); SUMO makes no lane change of its own, except the
-    route's change for a car standing or crawling on a lane its route leaves."""
+    route's change for a car standing or crawling on a lane its route leaves. A plug-in's
+    `package.module:Class` (an actuator registered in `platoon_sumo.actuation.ACTUATORS`'s
+    shape) is accepted too."""
     split_gap_m: float = bounded(60.0, gt=0, le=10_000)
     """Without a laser, a follower farther than this from its predecessor counts as split
     from it (with a laser: when the predecessor is out of its scan) [m]."""
