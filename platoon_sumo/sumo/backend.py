@@ -47,6 +47,12 @@ LANE_END_REACH_M = 30.0
 #: Sublane actuation: a vehicle slow this long [s] on a lane its route leaves on this
 #: edge has its lane change made by SUMO (held by our gap check before a queue).
 HAND_OVER_AFTER_S = 10.0
+#: Sublane actuation: a sideways move the route needs that is steeper than this [tan of
+#: the angle off the lanes] and, at the car's speed, faster sideways than
+#: `STEER_COMFORT_LATERAL_MPS` is SUMO's to make (`SumoBackend._too_steep`).
+STEER_MAX_LANE_TAN = math.tan(math.radians(10.0))
+#: [m/s] see `STEER_MAX_LANE_TAN` (SUMO's default `maxSpeedLat`).
+STEER_COMFORT_LATERAL_MPS = 1.0
 #: Lateral speed of SUMO's lane changes made for a slow sublane-actuated car [m/s]
 #: (SUMO's default `maxSpeedLat`).
 HANDED_OVER_LATERAL_MPS = 1.0
@@ -141,6 +147,9 @@ class SumoBackend:
         self._handed_over: set[str] = set()
         self._slow_since: dict[str, float] = {}
         """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
+        self._steep_on: dict[str, str] = {}
+        """Sublane actuation: vehicles handed over for a lane change too steep to steer,
+        with the edge it is on (SUMO keeps them to that edge's end)."""
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
         self._in_network = 0
@@ -395,6 +404,7 @@ class SumoBackend:
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
             self._slow_since.pop(vid, None)
+            self._steep_on.pop(vid, None)
         self._known_gone = set(arrived)
         return arrived
 
@@ -410,6 +420,7 @@ class SumoBackend:
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
             self._slow_since.pop(vid, None)
+            self._steep_on.pop(vid, None)
         self._known_gone.update(gone)
         self._in_network -= len(gone)
         return gone
@@ -503,30 +514,45 @@ class SumoBackend:
         gets the lane-change mode of lane actuation: SUMO changes to the lane its route
         needs when the gap there is safe, sideways even at a standstill, and centres it
         there. Back to our steering (mode 0) once it is on a lane that continues,
-        within `HANDED_BACK_WITHIN_M` of its centre."""
+        within `HANDED_BACK_WITHIN_M` of its centre.
+
+        So does a car at any speed whose route needs a sideways move steeper than it
+        can steer comfortably (`_too_steep`: a short edge where netconvert invented a
+        ramp, a lane drop, a change forced within a few metres), and SUMO keeps it to
+        the end of that edge: the route path still crosses the lanes there, and our
+        steering, given back on the target lane, would follow the path out of it."""
         veh = libsumo.vehicle
         handed = vid in self._handed_over
         lane_id = veh.getLaneID(vid)
-        if veh.getSpeed(vid) < HAND_OVER_BELOW_MPS:
+        speed = veh.getSpeed(vid)
+        if speed < HAND_OVER_BELOW_MPS:
             slow_s = self.time_s - self._slow_since.setdefault(vid, self.time_s)
         else:
             self._slow_since.pop(vid, None)
             slow_s = -1.0
         if not lane_id or lane_id.startswith(":"):
             needs = handed  # inside a junction: no lane change, nothing to decide
-        elif handed or slow_s >= 0.0:
-            position = veh.getLanePosition(vid)
-            reach = math.inf if handed else LANE_END_REACH_M
-            waited = handed or slow_s >= HAND_OVER_AFTER_S
-            own_end = self._lane_length(lane_id) + 0.1
-            needs = any(
-                lane == lane_id
-                and offset != 0
-                and (length - position < reach or (waited and length < own_end))
-                for lane, length, _, offset, _, _ in veh.getBestLanes(vid)
-            ) or (handed and abs(veh.getLateralLanePosition(vid)) > HANDED_BACK_WITHIN_M)
         else:
-            needs = False
+            edge = self._lane_edge(lane_id)
+            if self._steep_on.get(vid, edge) != edge:
+                del self._steep_on[vid]  # past the edge of its steep change
+            needs = vid in self._steep_on
+            if not needs:
+                position = veh.getLanePosition(vid)
+                reach = math.inf if handed else LANE_END_REACH_M
+                waited = handed or slow_s >= HAND_OVER_AFTER_S
+                own_end = self._lane_length(lane_id) + 0.1
+                for lane, length, _, offset, _, _ in veh.getBestLanes(vid):
+                    if lane != lane_id or offset == 0:
+                        continue
+                    if handed or slow_s >= 0.0:
+                        needs = length - position < reach or (waited and length < own_end)
+                    if not needs and self._too_steep(vid, lane_id, offset, length - position):
+                        self._steep_on[vid] = edge
+                        needs = True
+                    break
+                if handed and not needs:
+                    needs = abs(veh.getLateralLanePosition(vid)) > HANDED_BACK_WITHIN_M
         if needs and not handed:
             veh.changeSublane(vid, 0.0)  # our last request would still win over SUMO's
             veh.setLaneChangeMode(vid, LANE_CHANGE_STRATEGIC_ONLY)
@@ -536,6 +562,19 @@ class SumoBackend:
             veh.setLaneChangeMode(vid, LANE_CHANGE_REQUESTS_ONLY)
             self._handed_over.discard(vid)
         return needs
+
+    def _too_steep(self, vid: str, lane_id: str, offset: int, remaining_m: float) -> bool:
+        """Would steering this car `offset` lanes over (left +) within `remaining_m`
+        (where its route leaves its lane, SUMO's best lanes) cross the lanes steeper
+        than `STEER_MAX_LANE_ANGLE_RAD` and faster sideways than
+        `STEER_COMFORT_LATERAL_MPS` at its speed?"""
+        veh = libsumo.vehicle
+        sideways = abs(offset) * float(libsumo.lane.getWidth(lane_id)) - math.copysign(
+            veh.getLateralLanePosition(vid), offset
+        )
+        speed = max(veh.getSpeed(vid), 1e-3)
+        slope = max(STEER_MAX_LANE_TAN, STEER_COMFORT_LATERAL_MPS / speed)
+        return sideways > slope * max(remaining_m, 0.0)
 
     def body_directions(
         self, vehicle_ids: Sequence[str], ahead_m: NDArray[np.float64]
@@ -619,6 +658,7 @@ class SumoBackend:
         self._lanes_behind.pop(vehicle_id, None)
         self._handed_over.discard(vehicle_id)
         self._slow_since.pop(vehicle_id, None)
+        self._steep_on.pop(vehicle_id, None)
         self._known_gone.add(vehicle_id)
 
     def route_contexts(

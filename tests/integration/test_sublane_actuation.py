@@ -9,9 +9,11 @@ SUMO's own lane change."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -170,6 +172,7 @@ def test_a_car_held_on_the_wrong_lane_to_its_end_gets_the_lane_through_sumo(
     the hand-over it stands at the end of lane 0 for good."""
     if not hand_over:
         monkeypatch.setattr(backend, "HAND_OVER_BELOW_MPS", 0.0)
+        monkeypatch.setattr(backend, "STEER_MAX_LANE_TAN", math.inf)  # nor as too steep
     summary, traj = turn_left(write_scenario, tmp_path, left_turn_lane, {
         "members": 1, "depart_lane": 0, "depart_pos_m": 20.0,
         "leader": {"type": "hold_lane:HoldLane", "params": {"hold_until_s": 205.0}},
@@ -206,3 +209,88 @@ def test_members_already_in_the_target_lane_wait_for_no_gap(
     for vid in ("p.0", "p.1", "p.2"):
         rows = traj[traj["vehicle_id"] == vid]
         assert rows["lane_id"].iloc[-1] == "CN_0", vid
+
+
+RAMP_NODES = """<nodes>
+  <node id="W" x="0" y="0"/> <node id="N" x="0" y="40"/>
+  <node id="A" x="300" y="0" type="priority"/> <node id="B" x="340" y="0" type="priority"/>
+  <node id="E" x="640" y="0"/>
+</nodes>"""
+RAMP_EDGES = """<edges>
+  <edge id="WA" from="W" to="A" priority="1" numLanes="1" speed="13.89"/>
+  <edge id="NA" from="N" to="A" priority="2" numLanes="1" speed="13.89"/>
+  <edge id="AB" from="A" to="B" priority="2" numLanes="3" speed="13.89"/>
+  <edge id="BE" from="B" to="E" priority="2" numLanes="1" speed="13.89"/>
+</edges>"""
+RAMP_CONNECTIONS = """<connections>
+  <connection from="WA" to="AB" fromLane="0" toLane="0"/>
+  <connection from="NA" to="AB" fromLane="0" toLane="2"/>
+  <connection from="AB" to="BE" fromLane="2" toLane="0"/>
+</connections>"""
+RAMP_DEMAND = """<routes>
+  <vType id="human" speedFactor="1.0" speedDev="0"/>
+  <route id="n" edges="NA AB BE"/>
+  <flow id="n" type="human" route="n" begin="0" end="120" period="4" departSpeed="max"
+        departLane="best"/>
+</routes>"""
+
+
+@pytest.fixture(scope="module")
+def forced_shift(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """W-A (one lane) enters A-B, 40 m and three lanes, on its right lane; only A-B's
+    left lane goes on to B-E, and it is the lane a side road N-A feeds with a car every
+    4 s. The route W-A, A-B, B-E must shift two lanes (6.4 m) within 40 m: the path's
+    blend over the middle of A-B runs up to 26 degrees off the lanes."""
+    d = tmp_path_factory.mktemp("forced_shift")
+    (d / "x.nod.xml").write_text(RAMP_NODES)
+    (d / "x.edg.xml").write_text(RAMP_EDGES)
+    (d / "x.con.xml").write_text(RAMP_CONNECTIONS)
+    (d / "demand.rou.xml").write_text(RAMP_DEMAND)
+    net = d / "x.net.xml"
+    subprocess.run(
+        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
+         "-x", str(d / "x.con.xml"), "-o", str(net), "--no-turnarounds"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return net, d / "demand.rou.xml"
+
+
+@pytest.mark.parametrize("steep_to_sumo", [True, False])
+def test_a_shift_too_steep_to_steer_is_sumos_lane_change(
+    forced_shift, write_scenario, tmp_path, monkeypatch, steep_to_sumo
+):
+    """A sublane platoon on a route that shifts two lanes within a short edge: steered
+    along the path, the cars would run 20-30 degrees off the lanes across the lane the
+    side road's cars drive in, the leader 3 m/s sideways. The shift goes to SUMO's lane
+    change instead: it waits for a gap in the side road's flow and moves the car
+    sideways at 1 m/s."""
+    if not steep_to_sumo:
+        monkeypatch.setattr(backend, "STEER_MAX_LANE_TAN", math.inf)
+    net, demand = forced_shift
+    follower = {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                "params": {"on_lost": "route_following", "corridor_margin_rel": 1.2}}  # fmt: skip
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 150.0, "seed": 1, "lateral_resolution_m": 0.8},
+        "network": {"net_file": str(net)},
+        "traffic": {"route_files": [str(demand)]},
+        "platoons": [{"id": "p", "depart_s": 5.0, "actuation": "sublane", "members": 3,
+                      "spacing_m": 8.0, "route": {"edges": ["WA", "AB", "BE"]},
+                      "leader": {"type": "route_following",
+                                 "params": {"cruise_speed_mps": 11.0}},
+                      "follower": follower}],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    sideways = {}  # fastest sideways move on A-B (which runs along x) [m/s]
+    for vid, rows in traj.groupby("vehicle_id"):
+        on_ab = rows["lane_id"].str.startswith("AB_").to_numpy()
+        lateral_speed = np.gradient(rows["y_m"].to_numpy(), rows["time_s"].to_numpy())
+        sideways[vid] = float(np.abs(lateral_speed[on_ab]).max())
+    if not steep_to_sumo:  # the mechanism: the leader steered along the path
+        assert sideways["p.0"] > 2.0
+        return
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
+    assert summary["platoon_vehicles"]["arrived"] == 3
+    for vid in ("p.0", "p.1", "p.2"):
+        assert sideways[vid] < 1.05, vid  # SUMO's lane change: 1 m/s sideways
