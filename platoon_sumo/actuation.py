@@ -53,6 +53,8 @@ class ActuationPort(Protocol):
         self, vehicle_ids: Sequence[str], ahead_m: FloatArray
     ) -> tuple[FloatArray, FloatArray]: ...
 
+    def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]: ...
+
 
 @dataclass(frozen=True)
 class ActuationBatch:
@@ -170,7 +172,15 @@ class SublaneActuation:
         speed SUMO drove (the state read back), not the command: where SUMO held a car
         below the command, the ratio of the two multiplied the lateral speed every step.
         Without the second term SUMO's angle lags the lateral motion by length / v
-        (0.6 s at 8 m/s), and the controllers overshot lane changes by a metre."""
+        (0.6 s at 8 m/s), and the controllers overshot lane changes by a metre.
+
+        While any part of a vehicle is on a junction's internal lane its lateral offset
+        is held (SUMO's lane steers it through, as its own cars): those lanes bend
+        tighter than a car can turn (1.6 m radius for a right turn on netgenerate's
+        grids, 3.9 m the bicycle's rear axle), and the controllers steer the rear axle,
+        which SUMO's body (front on the lane, back along the chord) puts inside the
+        turn. The heading that lagged the lane's, turned into lateral speed, carried
+        cars 2 m wide out of the junction into the next lane."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
         speed = np.maximum(batch.state.speed_mps, 0.0)
         new = batch.model.step(
@@ -183,5 +193,7 @@ class SublaneActuation:
         lateral = speed * np.tan(angle) + batch.length_m * np.sin(wanted - angle) / (
             np.cos(angle) * batch.dt_s
         )
+        # in a junction SUMO's lane steers: the lateral offset is held
+        lateral[sumo.in_junctions(batch.vehicle_ids)] = 0.0
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)
         return ActuationResult(None, {})

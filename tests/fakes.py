@@ -10,6 +10,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from platoon_sumo.loop.ports import FloatArray, LaneOccupant, RouteContext, StandingVehicle
 from platoon_sumo.world import VehicleAhead, WorldSnapshot
@@ -176,6 +177,9 @@ class FakeBackend:
     ) -> tuple[FloatArray, FloatArray]:
         zeros = np.zeros(len(vehicle_ids))  # the fake's lane runs along +x
         return zeros, zeros
+
+    def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]:
+        return np.zeros(len(vehicle_ids), dtype=np.bool_)  # the fake has no junctions
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))

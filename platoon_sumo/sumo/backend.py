@@ -610,6 +610,27 @@ class SumoBackend:
             later[i] = self._chord(lanes, front + ahead, length)
         return now, later
 
+    def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]:
+        """Has each vehicle any part of its body on a junction's internal lane (its front
+        on one, or its back still on one of the lanes `body_directions` saw it drive
+        along)? Call after `body_directions` in the same step."""
+        veh = libsumo.vehicle
+        out = np.zeros(len(vehicle_ids), dtype=np.bool_)
+        for i, vid in enumerate(vehicle_ids):
+            lanes = self._lanes_behind.get(vid)
+            if not lanes:
+                continue
+            geom = self._geometry.get(vid)
+            back = veh.getLanePosition(vid) - (geom[0] if geom is not None else veh.getLength(vid))
+            k = 0
+            hit = lanes[0].startswith(":")
+            while not hit and back < 0.0 and k + 1 < len(lanes):
+                k += 1
+                back += self._lane_length(lanes[k])
+                hit = lanes[k].startswith(":")
+            out[i] = hit
+        return out
+
     def _chord(self, lanes: list[str], front_m: float, length_m: float) -> float:
         fx, fy = self._lane_point(lanes, front_m)
         bx, by = self._lane_point(lanes, front_m - length_m)
