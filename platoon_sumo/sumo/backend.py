@@ -147,8 +147,8 @@ class SumoBackend:
         self._handed_over: set[str] = set()
         self._slow_since: dict[str, float] = {}
         """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
-        self._steep_on: dict[str, str] = {}
-        """Sublane actuation: vehicles handed over for a lane change too steep to steer,
+        self._kept_on: dict[str, str] = {}
+        """Sublane actuation: vehicles handed over for a lane change their route needs,
         with the edge it is on (SUMO keeps them to that edge's end)."""
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
@@ -404,7 +404,7 @@ class SumoBackend:
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
             self._slow_since.pop(vid, None)
-            self._steep_on.pop(vid, None)
+            self._kept_on.pop(vid, None)
         self._known_gone = set(arrived)
         return arrived
 
@@ -420,7 +420,7 @@ class SumoBackend:
             self._lanes_behind.pop(vid, None)
             self._handed_over.discard(vid)
             self._slow_since.pop(vid, None)
-            self._steep_on.pop(vid, None)
+            self._kept_on.pop(vid, None)
         self._known_gone.update(gone)
         self._in_network -= len(gone)
         return gone
@@ -513,14 +513,17 @@ class SumoBackend:
         or slow for `HAND_OVER_AFTER_S` with the route leaving its lane on this edge,
         gets the lane-change mode of lane actuation: SUMO changes to the lane its route
         needs when the gap there is safe, sideways even at a standstill, and centres it
-        there. Back to our steering (mode 0) once it is on a lane that continues,
-        within `HANDED_BACK_WITHIN_M` of its centre.
+        there. So does a car at any speed whose route needs a sideways move steeper
+        than it can steer comfortably (`_too_steep`: a short edge where netconvert
+        invented a ramp, a lane drop, a change forced within a few metres).
 
-        So does a car at any speed whose route needs a sideways move steeper than it
-        can steer comfortably (`_too_steep`: a short edge where netconvert invented a
-        ramp, a lane drop, a change forced within a few metres), and SUMO keeps it to
-        the end of that edge: the route path still crosses the lanes there, and our
-        steering, given back on the target lane, would follow the path out of it."""
+        SUMO keeps a car handed over for its route's lane change to the end of that
+        edge, then centres it on a lane that continues (within `HANDED_BACK_WITHIN_M`)
+        before our steering (mode 0) takes it back. Given back on the target lane
+        mid-edge, our steering followed what is still across the lanes there: the
+        route path, or the predecessor a laser follower tracks, itself waiting on the
+        lane between for a gap (a follower handed over at 2 m/s, given back on its
+        target lane, steered back across at 2.2 m/s sideways)."""
         veh = libsumo.vehicle
         handed = vid in self._handed_over
         lane_id = veh.getLaneID(vid)
@@ -534,9 +537,9 @@ class SumoBackend:
             needs = handed  # inside a junction: no lane change, nothing to decide
         else:
             edge = self._lane_edge(lane_id)
-            if self._steep_on.get(vid, edge) != edge:
-                del self._steep_on[vid]  # past the edge of its steep change
-            needs = vid in self._steep_on
+            if self._kept_on.get(vid, edge) != edge:
+                del self._kept_on[vid]  # past the edge of its lane change
+            needs = vid in self._kept_on
             if not needs:
                 position = veh.getLanePosition(vid)
                 reach = math.inf if handed else LANE_END_REACH_M
@@ -547,9 +550,10 @@ class SumoBackend:
                         continue
                     if handed or slow_s >= 0.0:
                         needs = length - position < reach or (waited and length < own_end)
-                    if not needs and self._too_steep(vid, lane_id, offset, length - position):
-                        self._steep_on[vid] = edge
-                        needs = True
+                    if not needs:
+                        needs = self._too_steep(vid, lane_id, offset, length - position)
+                    if needs:
+                        self._kept_on[vid] = edge
                     break
                 if handed and not needs:
                     needs = abs(veh.getLateralLanePosition(vid)) > HANDED_BACK_WITHIN_M
@@ -679,7 +683,7 @@ class SumoBackend:
         self._lanes_behind.pop(vehicle_id, None)
         self._handed_over.discard(vehicle_id)
         self._slow_since.pop(vehicle_id, None)
-        self._steep_on.pop(vehicle_id, None)
+        self._kept_on.pop(vehicle_id, None)
         self._known_gone.add(vehicle_id)
 
     def route_contexts(
