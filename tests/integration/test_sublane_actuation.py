@@ -364,3 +364,65 @@ def test_a_platoon_turning_right_at_a_tight_junction_keeps_its_lane(
         after = rows[rows["lane_id"].str.startswith("CE_")]
         assert (after["lane_id"] == "CE_0").all(), vid
         assert after["lateral_offset_m"].abs().max() < 0.5, vid
+
+
+LEFT_TURN_NODES = """<nodes>
+  <node id="C" x="0" y="0" type="priority"/>
+  <node id="W" x="-200" y="0"/> <node id="E" x="200" y="0"/>
+  <node id="N" x="0" y="200"/> <node id="S" x="0" y="-200"/>
+</nodes>"""
+LEFT_TURN_EDGES = "<edges>" + "".join(
+    f'<edge id="{a}{b}" from="{a}" to="{b}" priority="{p}" numLanes="2" speed="13.89"/>'
+    for a, b, p in [("W", "C", 2), ("C", "E", 2), ("E", "C", 2), ("C", "W", 2),
+                    ("N", "C", 1), ("C", "N", 1), ("S", "C", 1), ("C", "S", 1)]
+) + "</edges>"  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def left_turn_crossing(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A four-arm priority crossing of two-lane roads: from W-C the left lane turns left
+    into C-N, from E-C into C-S; the two left turns pass each other inside the junction
+    on internal lanes 2.8 m apart, neither yields to the other."""
+    d = tmp_path_factory.mktemp("crossing")
+    (d / "x.nod.xml").write_text(LEFT_TURN_NODES)
+    (d / "x.edg.xml").write_text(LEFT_TURN_EDGES)
+    net = d / "x.net.xml"
+    subprocess.run(
+        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
+         "-o", str(net), "--no-turnarounds"],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return net
+
+
+def test_opposite_left_turners_pass_each_other_inside_the_junction(
+    left_turn_crossing, write_scenario, tmp_path
+):
+    """Two platoons from opposite approaches turn left at the same time. Tracking the
+    tight turn with its rear axle, a steered car swings its front bumper (SUMO's
+    position) outwards, towards the other turn; before the junction hold both ran to the
+    edge of their internal lanes (0.7 m), met face to face and held each other for good
+    (`RiLSA_example3`). Held on SUMO's internal lanes they pass and arrive."""
+    follower = {"type": "laser_follower", "sensor": {"preset": "utm30lx"},
+                "params": {"on_lost": "route_following", "corridor_margin_rel": 1.2}}  # fmt: skip
+    platoons = [
+        {"id": pid, "members": 2, "spacing_m": 8.0, "depart_s": 1.0, "depart_lane": 1,
+         "actuation": "sublane", "route": {"edges": edges},
+         "leader": {"type": "route_following", "params": {"cruise_speed_mps": 11.0}},
+         "follower": follower}
+        for pid, edges in (("w", ["WC", "CN"]), ("e", ["EC", "CS"]))
+    ]  # fmt: skip
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 60.0, "seed": 1, "lateral_resolution_m": 0.8},
+        "network": {"net_file": str(left_turn_crossing)},
+        "platoons": platoons,
+    }
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    inside = traj[traj["lane_id"].str.startswith(":")]
+    last = traj.groupby("vehicle_id").tail(1).set_index("vehicle_id")
+    assert summary["collisions"] == 0
+    assert inside["lateral_offset_m"].abs().max() < 0.35
+    for vid in ("w.0", "w.1", "e.0", "e.1"):
+        assert last.loc[vid, "lane_id"] in ("CN_1", "CS_1", "CN_0", "CS_0"), vid
