@@ -95,7 +95,7 @@ class LaneChangeGaps:
         if distance <= 0.0:  # under way: the vehicle ahead in the target lane, and sideways
             own = change.begin_lane_pos_m - distance
             ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
-                     if pos - other_len > own - 1e-9]  # fmt: skip
+                     if vid != m.id and pos - other_len > own - 1e-9]  # fmt: skip
             leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
             hold = self._sideways_hold_m(ctx, m, change, occupants)
             if hold is not None:
