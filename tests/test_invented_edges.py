@@ -3,7 +3,6 @@ joined junction crossed on long internal lanes."""
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -11,20 +10,12 @@ import yaml
 
 from platoon_sumo.cli import main
 from platoon_sumo.sumo import network
-from platoon_sumo.sumo.backend import sumo_binary
 from platoon_sumo.sumo.network import Network
+from tests.helpers import build_net
 
 
 def netconvert(tmp_path: Path, nodes: str, edges: str, *options: str) -> Path:
-    (tmp_path / "n.nod.xml").write_text(f"<nodes>{nodes}</nodes>", encoding="utf-8")
-    (tmp_path / "n.edg.xml").write_text(f"<edges>{edges}</edges>", encoding="utf-8")
-    net = tmp_path / "n.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(tmp_path / "n.nod.xml"),
-         "-e", str(tmp_path / "n.edg.xml"), "-o", str(net), *options],
-        check=True, capture_output=True,
-    )  # fmt: skip
-    return net
+    return build_net(tmp_path, f"<nodes>{nodes}</nodes>", f"<edges>{edges}</edges>", None, *options)
 
 
 def scenario(tmp_path: Path, net: Path, routes: dict[str, list[str]]) -> Path:

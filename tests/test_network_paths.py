@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from platoon_sumo.sumo.network import Network, RouteError
-from tests.helpers import URBAN_GRID_NET
+from tests.helpers import URBAN_GRID_NET, build_net
 
 CROSS_TOWN = ["left0A0", "A0B0", "B0B1", "B1B2", "B2C2", "C2right2"]
 
@@ -61,27 +61,17 @@ def test_lanes_that_share_no_junction_are_on_different_levels(grid):
 
 
 def test_routes_respect_vclass_and_reject_u_turns(tmp_path):
-    import subprocess
-
-    from platoon_sumo.sumo.backend import sumo_binary
-
-    (tmp_path / "n.nod.xml").write_text(
+    nodes = (
         '<nodes><node id="A" x="0" y="0"/><node id="B" x="200" y="0"/>'
         '<node id="C" x="400" y="0"/></nodes>'
     )
-    (tmp_path / "n.edg.xml").write_text(
+    edges = (
         "<edges>"
         '<edge id="AB" from="A" to="B" numLanes="2"><lane index="0" allow="bicycle"/></edge>'
         '<edge id="BC" from="B" to="C" numLanes="1"/><edge id="CB" from="C" to="B" numLanes="1"/>'
         '<edge id="BA" from="B" to="A" numLanes="1"/></edges>'
     )
-    net_file = tmp_path / "n.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(tmp_path / "n.nod.xml"),
-         "-e", str(tmp_path / "n.edg.xml"), "-o", str(net_file)],
-        check=True, capture_output=True,
-    )  # fmt: skip
-    net = Network(net_file)
+    net = Network(build_net(tmp_path, nodes, edges))
     assert net.first_lane_allowing("AB", "passenger") == 1  # lane 0 is a bicycle lane
     assert not net.lane_allows("AB", 0, "passenger")
     net.check_edges(["AB", "BC"], vclass="passenger")

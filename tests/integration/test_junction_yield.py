@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -11,7 +10,7 @@ import pandas as pd
 import pytest
 
 from platoon_sumo.runner import load_plan, run
-from platoon_sumo.sumo.backend import sumo_binary
+from tests.helpers import build_net
 
 NODES = """<nodes>
   <node id="W" x="-300" y="0"/> <node id="E" x="300" y="0"/>
@@ -30,15 +29,7 @@ EDGES = """<edges>
 def priority_crossing(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """An unsignalised crossing: main road W-E has priority over the minor road S-N."""
     d = tmp_path_factory.mktemp("crossing")
-    (d / "x.nod.xml").write_text(NODES)
-    (d / "x.edg.xml").write_text(EDGES)
-    net = d / "x.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
-         "-o", str(net), "--no-turnarounds"],
-        check=True, capture_output=True,
-    )  # fmt: skip
-    return net
+    return build_net(d, NODES, EDGES, None, "--no-turnarounds")
 
 
 def test_platoon_vehicle_yields_to_priority_traffic(priority_crossing, write_scenario, tmp_path):

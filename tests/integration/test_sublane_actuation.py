@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +18,7 @@ import pytest
 
 from platoon_sumo.runner import load_plan, run
 from platoon_sumo.sumo import backend
-from platoon_sumo.sumo.backend import sumo_binary
-from tests.helpers import REPO
+from tests.helpers import REPO, build_net
 
 STRAIGHT_NET = REPO / "networks" / "straight" / "straight.net.xml"
 PLUGINS = REPO / "tests" / "plugins"
@@ -111,15 +109,7 @@ def left_turn_lane(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """W-C, 200 m and three lanes, of which only the left one (index 2) turns left
     into C-N; the right two go straight on to C-E."""
     d = tmp_path_factory.mktemp("left_turn_lane")
-    (d / "x.nod.xml").write_text(NODES)
-    (d / "x.edg.xml").write_text(EDGES)
-    (d / "x.con.xml").write_text(CONNECTIONS)
-    net = d / "x.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
-         "-x", str(d / "x.con.xml"), "-o", str(net), "--no-turnarounds"],
-        check=True, capture_output=True,
-    )  # fmt: skip
+    net = build_net(d, NODES, EDGES, CONNECTIONS, "--no-turnarounds")
     return net
 
 
@@ -242,16 +232,8 @@ def forced_shift(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     4 s. The route W-A, A-B, B-E must shift two lanes (6.4 m) within 40 m: the path's
     blend over the middle of A-B runs up to 26 degrees off the lanes."""
     d = tmp_path_factory.mktemp("forced_shift")
-    (d / "x.nod.xml").write_text(RAMP_NODES)
-    (d / "x.edg.xml").write_text(RAMP_EDGES)
-    (d / "x.con.xml").write_text(RAMP_CONNECTIONS)
     (d / "demand.rou.xml").write_text(RAMP_DEMAND)
-    net = d / "x.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
-         "-x", str(d / "x.con.xml"), "-o", str(net), "--no-turnarounds"],
-        check=True, capture_output=True,
-    )  # fmt: skip
+    net = build_net(d, RAMP_NODES, RAMP_EDGES, RAMP_CONNECTIONS, "--no-turnarounds")
     return net, d / "demand.rou.xml"
 
 
@@ -317,14 +299,7 @@ def signalised_cross(tmp_path_factory: pytest.TempPathFactory) -> Path:
     turns' internal lanes bend 90 degrees on a 1.6 m radius, far tighter than a car's
     turning circle (3.9 m for the bicycle's rear axle)."""
     d = tmp_path_factory.mktemp("signalised_cross")
-    (d / "x.nod.xml").write_text(CROSS_NODES)
-    (d / "x.edg.xml").write_text(CROSS_EDGES)
-    net = d / "x.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
-         "-o", str(net), "--no-turnarounds"],
-        check=True, capture_output=True,
-    )  # fmt: skip
+    net = build_net(d, CROSS_NODES, CROSS_EDGES, None, "--no-turnarounds")
     return net
 
 
@@ -384,14 +359,7 @@ def left_turn_crossing(tmp_path_factory: pytest.TempPathFactory) -> Path:
     into C-N, from E-C into C-S; the two left turns pass each other inside the junction
     on internal lanes 2.8 m apart, neither yields to the other."""
     d = tmp_path_factory.mktemp("crossing")
-    (d / "x.nod.xml").write_text(LEFT_TURN_NODES)
-    (d / "x.edg.xml").write_text(LEFT_TURN_EDGES)
-    net = d / "x.net.xml"
-    subprocess.run(
-        [sumo_binary("netconvert"), "-n", str(d / "x.nod.xml"), "-e", str(d / "x.edg.xml"),
-         "-o", str(net), "--no-turnarounds"],
-        check=True, capture_output=True,
-    )  # fmt: skip
+    net = build_net(d, LEFT_TURN_NODES, LEFT_TURN_EDGES, None, "--no-turnarounds")
     return net
 
 
