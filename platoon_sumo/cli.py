@@ -191,9 +191,10 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     import tempfile
 
     from platoon_sumo.runner import load_plan, run
+    from platoon_sumo.scenario import load_scenario
     from platoon_sumo.sensors.plot import plot_scan
 
-    sim = load_plan(args.scenario).scenario.simulation
+    sim = load_scenario(args.scenario).scenario.simulation  # the file only: no network yet
     if not (math.isfinite(args.at) and sim.begin_s < args.at <= sim.end_s):
         raise ScenarioError(
             args.scenario, "--at", f"{args.at:g} s is not a time of this run",
