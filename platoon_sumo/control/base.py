@@ -62,6 +62,11 @@ class Observation:
     sensors: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     """The latest message of each of the vehicle's sensors, by the name the scenario
     gives it (the laser is "laser"); a sensor that has not produced one is absent."""
+    platoon_id: str = ""
+    """The vehicle's platoon (for matching V2V messages: a follower's predecessor is
+    member `index - 1` of the same platoon)."""
+    index: int = 0
+    """Position in the platoon, 0 = leader."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,10 @@ class Telemetry:
     mode: str = ""
     measured_gap_m: float | None = None
     gap_policy: GapPolicy | None = None
+    desired_accel_mps2: float | None = None
+    """The acceleration the controller asks for (a CACC's input `u`); what a V2V
+    channel broadcasts as the vehicle's desired acceleration. Default: derived from the
+    commanded speed."""
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@ supervisor, which may only lower the speed."""
 
 from __future__ import annotations
 
-from platoon_sumo.control import Observation
+from platoon_sumo.control import Command, Observation
 from platoon_sumo.control.base import step_batch
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
@@ -39,7 +39,19 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
         obstacle_ahead=m.obstacle_ahead,
         scan=scan if isinstance(scan, LaserScan) else None,
         sensors=dict(m.sensors),
+        platoon_id=m.platoon_id,
+        index=m.index,
     )
+
+
+def desired_accel(m: Member, command: Command, dt_s: float) -> float:
+    """The controller's own figure, else the commanded speed change within the limits."""
+    telemetry = command.telemetry
+    if telemetry is not None and telemetry.desired_accel_mps2 is not None:
+        return float(telemetry.desired_accel_mps2)
+    limits = m.platoon.limits
+    wanted = (command.speed_mps - m.speed_mps) / dt_s
+    return min(max(wanted, -limits.max_decel_mps2), limits.max_accel_mps2)
 
 
 class Decide:
@@ -52,6 +64,7 @@ class Decide:
         commands = step_batch([m.controller for m in members], observations)
         for m, obs, command in zip(members, observations, commands, strict=True):
             m.command = command
+            m.desired_accel_mps2 = desired_accel(m, command, ctx.dt_s)
             m.executed, enforced = supervise(
                 m.platoon.config.supervisor, obs, command, m.actuator.sumo_drives
             )

@@ -72,6 +72,8 @@ class Member:
     executed: Command = field(default_factory=lambda: Command(0.0))
     """What the supervisor let through (the actuator's input)."""
     supervisor_state: str = ""
+    desired_accel_mps2: float = 0.0
+    """The acceleration the last command asked for (what a V2V channel broadcasts)."""
     sumo_capped: bool = False
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None

@@ -12,7 +12,7 @@ import numpy as np
 
 from platoon_sumo.errors import PluginError
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.fleet import SPEED, YAW, Member
+from platoon_sumo.loop.fleet import ACCEL, SPEED, YAW, Member
 from platoon_sumo.platoon import predecessor_ids
 from platoon_sumo.sensors.base import SensingBatch, SensorModel
 from platoon_sumo.sensors.laser import LaserScan
@@ -64,6 +64,10 @@ class Sense:
                 footprints=ctx.footprints,
                 static_segments=ctx.run.static_segments,
                 rng=ctx.rng,
+                platoon_ids=tuple(m.platoon_id for m, _ in group),
+                member_index=np.array([m.index for m, _ in group], dtype=np.int64),
+                accel_mps2=ctx.fleet.kin[rows, ACCEL],
+                desired_accel_mps2=np.array([m.desired_accel_mps2 for m, _ in group]),
             )
             try:
                 messages = list(model.observe(batch))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
 
 import numpy as np
@@ -53,6 +53,16 @@ class SensingBatch:
     footprints: FloatArray
     static_segments: FloatArray | None
     rng: np.random.Generator
+    platoon_ids: tuple[str, ...] = ()
+    """Each vehicle's platoon."""
+    member_index: IntArray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    """Each vehicle's position in its platoon (0 = leader)."""
+    accel_mps2: FloatArray = field(default_factory=lambda: np.empty(0))
+    """Each vehicle's acceleration over the last step."""
+    desired_accel_mps2: FloatArray = field(default_factory=lambda: np.empty(0))
+    """The acceleration each vehicle's last command asked for (its controller's
+    `Telemetry.desired_accel_mps2`, or the commanded speed change within its limits):
+    what a V2V channel broadcasts."""
 
 
 class SensorModel(Protocol):
