@@ -45,6 +45,7 @@ COLUMN_TYPES: dict[str, str] = {
     "desired_gap_m": "f", "spacing_error_m": "f", "time_headway_s": "f", "ttc_s": "f",
     "lateral_deviation_m": "f", "predecessor_rays": "i", "predecessor_in_view": "i",
     "supervisor": "s",
+    "controller_mode": "s",
 }  # fmt: skip
 TRAJECTORY_COLUMNS = tuple(COLUMN_TYPES)
 FORMATS = ("csv", "parquet")
@@ -227,6 +228,7 @@ class TrajectoryRecorder(StepHook):
             "predecessor_rays": rays,
             "predecessor_in_view": [int(r > 0) if r is not None else None for r in rays],
             "supervisor": [v.supervisor_state or None for v in vs],
+            "controller_mode": [t.mode or None if t is not None else None for t in telemetry],
         }  # fmt: skip
 
     def flush(self) -> None:

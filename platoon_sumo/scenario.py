@@ -34,13 +34,14 @@ from platoon_sumo.config_loader import (
 from platoon_sumo.control import CONTROLLERS, Controller
 from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (registers)
+from platoon_sumo.sensors import radar as _radar  # noqa: F401 (registers)
 from platoon_sumo.sensors.base import SENSORS, SensorModel
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path
 from platoon_sumo.sumo.inputs import InputFileError, check_route_file, check_xml
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
-from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, VehicleModel
+from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, Powertrain, VehicleModel
 from platoon_sumo.yaml_input import MAX_BYTES, YamlLimitError, load_bounded
 
 VEHICLE_CLASSES = (
@@ -351,6 +352,11 @@ class VehicleConfig:
     """SUMO's driver time headway (tau) for the platoon's vehicle type [s]; matters with
     `actuation: lane` only, where SUMO's safe speed, computed with it, caps the command
     (smaller: SUMO lets the vehicle follow closer)."""
+    actuator_lag_s: float = bounded(0.0, ge=0, le=10)
+    """First-order lag between the commanded and the achieved acceleration [s] (engine
+    and brakes; Plexe's engine lag, 0.5 s by default there); 0: none."""
+    max_jerk_mps3: float | None = bounded(None, gt=0, le=10_000)
+    """Largest change of the achieved acceleration per second [m/s³]; null: unbounded."""
 
     def __post_init__(self) -> None:
         require_choice(self.model, VEHICLE_MODELS.names(), "model")
@@ -382,6 +388,9 @@ class VehicleConfig:
         if self.model == "unicycle":
             return self.length_m / 2
         return self.length_m - max(self.length_m - self.wheelbase_m, 0.0) / 2
+
+    def powertrain(self) -> Powertrain:
+        return Powertrain(self.actuator_lag_s, self.max_jerk_mps3)
 
     def limits(self) -> MotionLimits:
         return MotionLimits(

@@ -198,6 +198,48 @@ def integrate_arc(
     )
 
 
+@dataclass(frozen=True)
+class Powertrain:
+    """How the achieved acceleration follows the commanded one: a first-order lag
+    (``da/dt = (a_cmd - a) / lag_s``, Plexe's engine lag and the `tau` of Ploeg et al.'s
+    vehicle model) and a jerk bound. Zero lag and no jerk bound: the commanded speed is
+    reached as fast as the acceleration limits allow (the paper's robots)."""
+
+    lag_s: float = 0.0
+    max_jerk_mps3: float | None = None
+
+    @property
+    def is_ideal(self) -> bool:
+        return self.lag_s <= 0.0 and self.max_jerk_mps3 is None
+
+
+def powertrain_speed(
+    speed_mps: FloatArray,
+    accel_mps2: FloatArray,
+    speed_cmd_mps: FloatArray,
+    powertrain: Powertrain,
+    limits: MotionLimits,
+    dt_s: float,
+) -> FloatArray:
+    """The speed after one step of a vehicle whose acceleration was `accel_mps2` when the
+    controller commanded `speed_cmd_mps`: the commanded acceleration (the speed change
+    within the limits) passes the lag, exactly discretised for a command held over the
+    step (``a += (1 - exp(-dt / lag)) (a_cmd - a)``), then the jerk bound; the vehicle
+    model's limits then apply as for any command."""
+    _check_dt(dt_s)
+    wanted = np.clip(
+        (speed_cmd_mps - speed_mps) / dt_s, -limits.max_decel_mps2, limits.max_accel_mps2
+    )
+    accel = wanted
+    if powertrain.lag_s > 0.0:
+        accel = accel_mps2 + (1.0 - math.exp(-dt_s / powertrain.lag_s)) * (wanted - accel_mps2)
+    if powertrain.max_jerk_mps3 is not None:
+        step = powertrain.max_jerk_mps3 * dt_s
+        accel = np.clip(accel, accel_mps2 - step, accel_mps2 + step)
+    accel = np.clip(accel, -limits.max_decel_mps2, limits.max_accel_mps2)
+    return np.maximum(speed_mps + accel * dt_s, 0.0)
+
+
 def heading_to_yaw_rate(
     target_yaw_rad: ArrayLike,
     current_yaw_rad: ArrayLike,

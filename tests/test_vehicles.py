@@ -16,10 +16,12 @@ from platoon_sumo.vehicles import (
     Bicycle,
     KinematicState,
     MotionLimits,
+    Powertrain,
     Unicycle,
     VehicleModel,
     heading_to_yaw_rate,
     integrate_arc,
+    powertrain_speed,
 )
 
 ROBOT = MotionLimits(
@@ -316,3 +318,66 @@ def test_registry_has_both_models_and_refuses_duplicates() -> None:
     with pytest.raises(LookupError, match="did you mean 'bicycle'"):
         VEHICLE_MODELS.get("bicycel")
     assert isinstance(VEHICLE_MODELS, Registry)
+
+
+def _drive_powertrain(
+    powertrain: Powertrain, speed_cmd: float, steps: int, dt: float = 0.1, v0: float = 10.0
+) -> np.ndarray:
+    """Accelerations achieved step by step under a constant speed command."""
+    speed, accel, out = np.array([v0]), np.array([0.0]), []
+    for _ in range(steps):
+        new = powertrain_speed(speed, accel, np.array([speed_cmd]), powertrain, CAR, dt)
+        accel, speed = (new - speed) / dt, new
+        out.append(float(accel[0]))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("lag_s", [0.1, 0.5, 1.3])
+def test_lag_step_response_matches_first_order_closed_form(lag_s: float) -> None:
+    # a command far above the speed asks for max_accel throughout: a(t) = a_max (1 - e^-t/lag)
+    dt = 0.1
+    achieved = _drive_powertrain(Powertrain(lag_s=lag_s), speed_cmd=1e3, steps=60, dt=dt)
+    t = dt * np.arange(1, 61)
+    expected = CAR.max_accel_mps2 * (1.0 - np.exp(-t / lag_s))
+    np.testing.assert_allclose(achieved, expected, rtol=0, atol=1e-9)
+
+
+def test_jerk_bound_ramps_the_acceleration() -> None:
+    achieved = _drive_powertrain(Powertrain(max_jerk_mps3=2.0), speed_cmd=1e3, steps=30)
+    expected = np.minimum(2.0 * 0.1 * np.arange(1, 31), CAR.max_accel_mps2)
+    np.testing.assert_allclose(achieved, expected, atol=1e-9)
+    braking = _drive_powertrain(Powertrain(max_jerk_mps3=2.0), speed_cmd=0.0, steps=5, v0=30.0)
+    np.testing.assert_allclose(braking, -0.2 * np.arange(1, 6), atol=1e-9)
+
+
+def test_ideal_powertrain_reaches_the_command_within_the_limits() -> None:
+    speed = np.array([10.0, 10.0, 10.0, 0.1])
+    cmd = np.array([10.1, 30.0, 0.0, 0.0])
+    new = powertrain_speed(speed, np.zeros(4), cmd, Powertrain(), CAR, 0.1)
+    dv_up, dv_down = CAR.max_accel_mps2 * 0.1, CAR.max_decel_mps2 * 0.1
+    np.testing.assert_allclose(new, [10.1, 10.0 + dv_up, 10.0 - dv_down, 0.0])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    speed=st.floats(0, 40),
+    accel=st.floats(-9, 3),
+    cmd=st.floats(0, 40),
+    lag=st.floats(0, 2),
+    jerk=st.one_of(st.none(), st.floats(0.1, 50)),
+)
+def test_powertrain_stays_within_limits(
+    speed: float, accel: float, cmd: float, lag: float, jerk: float | None
+) -> None:
+    dt = 0.1
+    pt = Powertrain(lag, jerk)
+    new = float(
+        powertrain_speed(np.array([speed]), np.array([accel]), np.array([cmd]), pt, CAR, dt)[0]
+    )
+    assert new >= 0.0
+    achieved = (new - speed) / dt
+    assert achieved <= CAR.max_accel_mps2 + 1e-9
+    assert achieved >= -CAR.max_decel_mps2 - 1e-9 or new == 0.0
+    within_limits = -CAR.max_decel_mps2 <= accel <= CAR.max_accel_mps2
+    if jerk is not None and new > 0.0 and within_limits:
+        assert abs(achieved - accel) <= jerk * dt + 1e-9

@@ -1,5 +1,6 @@
 """Controllers: the protocol, the registry, and the built-in families."""
 
+from platoon_sumo.control import cacc as _cacc  # noqa: F401 (registers)
 from platoon_sumo.control import laser_follower as _laser_follower  # noqa: F401 (registers)
 from platoon_sumo.control import paper as _paper  # noqa: F401 (registers)
 from platoon_sumo.control import route_following as _route_following  # noqa: F401 (registers)

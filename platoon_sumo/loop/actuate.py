@@ -1,4 +1,5 @@
-"""Actuation: each platoon's executed commands go to its actuator (planar or lane, see
+"""Actuation: each platoon's executed commands pass its powertrain (actuator lag and jerk
+bound, `vehicles.powertrain_speed`) and go to its actuator (planar, lane or sublane, see
 `platoon_sumo.actuation`); after the SUMO step, SUMO-driven members are read back."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import ACCEL, SPEED, YAW, Member, X, Y
 from platoon_sumo.supervisor import SUMO_SAFETY
-from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate
+from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate, powertrain_speed
 
 #: SUMO's speed this far below what the command and the acceleration limit allowed
 #: means SUMO's safety layer acted [m/s].
@@ -33,10 +34,18 @@ class Actuate:
             platoon, actuator = group[0].platoon, group[0].actuator
             rows = fleet.rows(group)
             kin = fleet.kin[rows]
+            speed_cmd = np.array([m.executed.speed_mps for m in group])
+            powertrain = platoon.config.vehicle.powertrain()
+            if not powertrain.is_ideal:
+                speed_cmd = powertrain_speed(
+                    kin[:, SPEED], kin[:, ACCEL], speed_cmd, powertrain, platoon.limits, dt_s
+                )
+            for m, sent in zip(group, speed_cmd.tolist(), strict=True):
+                m.speed_sent_mps = sent
             batch = ActuationBatch(
                 vehicle_ids=tuple(m.id for m in group),
                 state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
-                speed_cmd_mps=np.array([m.executed.speed_mps for m in group]),
+                speed_cmd_mps=speed_cmd,
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
@@ -70,9 +79,9 @@ class Actuate:
 class ReadBack:
     """Lane actuation: SUMO moved the vehicle, its pose and speed become the state.
 
-    Where SUMO's speed stays clearly below what the executed command and the
-    acceleration limit allowed, SUMO's safety layer acted: named in the supervisor state
-    and counted once per episode."""
+    Where SUMO's speed stays clearly below what the speed sent (the executed command
+    after the powertrain) and the acceleration limit allowed, SUMO's safety layer
+    acted: named in the supervisor state and counted once per episode."""
 
     def __call__(self, ctx: StepContext) -> None:
         world, fleet, dt_s = ctx.world, ctx.fleet, ctx.dt_s
@@ -87,7 +96,7 @@ class ReadBack:
         fleet.set_front_poses(rows, world.front_x_m[at], world.front_y_m[at], world.yaw_rad[at])
         fleet.kin[rows, SPEED] = speed
         fleet.kin[rows, ACCEL] = (speed - previous) / dt_s
-        commanded = np.array([m.executed.speed_mps for m in group])
+        commanded = np.array([m.speed_sent_mps for m in group])
         max_accel = np.array([m.platoon.limits.max_accel_mps2 for m in group])
         allowed = np.minimum(commanded, previous + max_accel * dt_s)
         capped = speed < allowed - SUMO_CAP_TOLERANCE_MPS

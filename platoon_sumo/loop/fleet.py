@@ -74,6 +74,8 @@ class Member:
     supervisor_state: str = ""
     desired_accel_mps2: float = 0.0
     """The acceleration the last command asked for (what a V2V channel broadcasts)."""
+    speed_sent_mps: float = 0.0
+    """The speed handed to the actuator: the executed command after the powertrain."""
     sumo_capped: bool = False
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None

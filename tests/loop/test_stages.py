@@ -218,6 +218,7 @@ def test_read_back_names_sumo_capping_the_speed_once_per_episode(write_scenario)
     departed(ctx, backend)
     (m,) = list(ctx.fleet)
     m.executed = Command(10.0)
+    m.speed_sent_mps = 10.0  # what Actuate handed SUMO
     for _ in range(3):  # SUMO keeps it standing (its safety layer)
         backend.speed_commands["p.0"] = 0.0
         backend.step()

@@ -1,0 +1,159 @@
+"""Communication and radar baselines: `acc` and `cacc` (Ploeg et al. 2011).
+
+Both keep a constant time gap to the vehicle ahead measured by a range sensor (the
+`radar` sensor by default) with the controller of Ploeg, Scheepers, van Nunen, van de
+Wouw and Nijmeijer, "Design and experimental evaluation of cooperative adaptive cruise
+control" (ITSC 2011):
+
+    e  = gap - (standstill_gap + h v)                 spacing error
+    e' = v_ahead - v - h a                            its rate
+    u' = (-u + kp e + kd e' + u_ff) / h               desired acceleration
+
+`cacc` feeds forward `u_ff`, the desired acceleration its predecessor broadcast over the
+V2V channel (`v2v` sensor); `acc` is the same law with `u_ff = 0`, the classic radar-only
+ACC, which needs a much larger time gap to damp disturbances along a platoon. Without a
+fresh message from the predecessor (older than `message_timeout_s`, or the radar's target
+is another vehicle, e.g. after a cut-in) `cacc` falls back to `acc`: the feed-forward is
+dropped and the time gap moves to `fallback_time_gap_s` at `time_gap_rate` seconds per
+second (a step to the larger gap would brake hard), and back once messages return
+(Ploeg et al. 2015 degrade to an estimated acceleration instead; here plainly to ACC).
+
+The law sets the desired acceleration; the command is the speed it reaches within one
+step, capped by route following's speed (speed limits, curves, signals), which also
+steers. With nothing within the radar's range the vehicle cruises as route following.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from platoon_sumo.config_loader import bounded, require_positive
+from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
+from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.sensors.radar import RadarReading
+from platoon_sumo.sensors.v2v import V2VInbox
+
+
+@dataclass(frozen=True)
+class AccParams:
+    time_gap_s: float = bounded(1.2, gt=0, le=10)
+    """h: time gap kept at speed, bumper to bumper [s]."""
+    standstill_gap_m: float = bounded(2.0, ge=0, le=100)
+    """r: gap kept at standstill [m]."""
+    kp_1ps2: float = bounded(0.2, ge=0, le=10)
+    """Gain on the spacing error [1/s²] (Ploeg et al. 2011: 0.2)."""
+    kd_1ps: float = bounded(0.7, ge=0, le=10)
+    """Gain on the spacing error's rate [1/s] (Ploeg et al. 2011: 0.7)."""
+    range_sensor: str = "radar"
+    """Name of the sensor giving the gap (`observation.sensors[name]`, a RadarReading)."""
+    route: RouteFollowingParams = field(default_factory=RouteFollowingParams)
+    """Steering, speed limits, curves and signals (route_following's parameters)."""
+
+    def __post_init__(self) -> None:
+        require_positive(self, "time_gap_s")
+
+
+@dataclass(frozen=True)
+class CaccParams(AccParams):
+    time_gap_s: float = bounded(0.5, gt=0, le=10)
+    """h: time gap kept at speed while the predecessor's messages arrive [s]."""
+    channel: str = "v2v"
+    """Name of the V2V sensor (`observation.sensors[name]`, a V2VInbox)."""
+    message_timeout_s: float = bounded(0.5, gt=0, le=60)
+    """A predecessor message older than this is stale: fall back to ACC [s]."""
+    fallback_time_gap_s: float = bounded(1.2, gt=0, le=10)
+    """Time gap of the ACC fall-back [s]."""
+    time_gap_rate: float = bounded(0.2, gt=0, le=100)
+    """How fast the time gap moves between the two [s per s]."""
+
+
+@CONTROLLERS.register("acc")
+class Acc:
+    """Radar-only constant time gap control (the `cacc` law without feed-forward)."""
+
+    Params: ClassVar[type[AccParams]] = AccParams
+
+    def __init__(self, params: AccParams | None = None) -> None:
+        self.params = params or self.Params()
+        self._route = RouteFollowing(self.params.route)
+        self.reset()
+
+    def reset(self) -> None:
+        self._route.reset()
+        self._u_mps2 = 0.0
+        self._last_speed_mps: float | None = None
+        self._time_gap_s = self.params.time_gap_s
+
+    def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:
+        """The predecessor's desired acceleration, or None (no usable message)."""
+        return None
+
+    def _time_gap(self, cooperative: bool, dt_s: float) -> float:
+        """h for this step."""
+        return self.params.time_gap_s
+
+    def step(self, observation: Observation) -> Command:
+        obs, p = observation, self.params
+        accel = 0.0
+        if self._last_speed_mps is not None:
+            accel = (obs.speed_mps - self._last_speed_mps) / obs.dt_s
+        self._last_speed_mps = obs.speed_mps
+        reading = obs.sensors.get(p.range_sensor)
+        if not isinstance(reading, RadarReading) or reading.gap_m is None:
+            route = self._route.step(obs)
+            self._u_mps2 = (route.speed_mps - obs.speed_mps) / obs.dt_s
+            return Command(
+                route.speed_mps, route.yaw_rate_radps, route.heading_rad, route.lane_change,
+                Telemetry("cruise", None, self._policy(), self._u_mps2),
+            )  # fmt: skip
+        route = self._route._step(obs, math.inf)
+        feed_forward = self._feed_forward(obs, reading)
+        h = self._time_gap_s = self._time_gap(feed_forward is not None, obs.dt_s)
+        ahead_speed = reading.speed_mps if reading.speed_mps is not None else obs.speed_mps
+        error = reading.gap_m - (p.standstill_gap_m + h * obs.speed_mps)
+        error_rate = ahead_speed - obs.speed_mps - h * accel
+        drive = p.kp_1ps2 * error + p.kd_1ps * error_rate + (feed_forward or 0.0)
+        u = self._u_mps2 + obs.dt_s / h * (drive - self._u_mps2)
+        limits = obs.limits
+        u = min(max(u, -limits.max_decel_mps2), limits.max_accel_mps2)
+        # the route's speed (limits, curves, signals) caps the command; the law's state
+        # does not wind up beyond what the vehicle is let to do
+        wanted = obs.speed_mps + u * obs.dt_s
+        speed = min(max(wanted, 0.0), route.speed_mps)
+        self._u_mps2 = (speed - obs.speed_mps) / obs.dt_s if speed < wanted else u
+        mode = "cacc" if feed_forward is not None else "acc"
+        return Command(
+            speed, route.yaw_rate_radps, route.heading_rad, route.lane_change,
+            Telemetry(mode, reading.gap_m, self._policy(), self._u_mps2),
+        )  # fmt: skip
+
+    def _policy(self) -> GapPolicy:
+        return GapPolicy(self.params.standstill_gap_m, self._time_gap_s)
+
+
+@CONTROLLERS.register("cacc")
+class Cacc(Acc):
+    """Ploeg et al. (2011) CACC: ACC plus the predecessor's broadcast desired
+    acceleration, falling back to ACC when its messages stop."""
+
+    Params: ClassVar[type[CaccParams]] = CaccParams
+    params: CaccParams
+
+    def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:
+        inbox = obs.sensors.get(self.params.channel)
+        if not isinstance(inbox, V2VInbox) or obs.index < 1:
+            return None
+        message = inbox.from_member(obs.platoon_id, obs.index - 1)
+        if message is None or obs.time_s - message.sent_s > self.params.message_timeout_s:
+            return None
+        if reading.target_id is not None and reading.target_id != message.sender_id:
+            return None  # the radar sees another vehicle (a cut-in): not its law to follow
+        return message.desired_accel_mps2
+
+    def _time_gap(self, cooperative: bool, dt_s: float) -> float:
+        p = self.params
+        target = p.time_gap_s if cooperative else p.fallback_time_gap_s
+        step = p.time_gap_rate * dt_s
+        return self._time_gap_s + min(max(target - self._time_gap_s, -step), step)
