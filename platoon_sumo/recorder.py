@@ -32,6 +32,7 @@ from platoon_sumo.metrics.kernels import (
 )
 from platoon_sumo.metrics.stats import RunStats
 from platoon_sumo.sensors.laser import LaserScan
+from platoon_sumo.sensors.v2v import V2VInbox
 
 #: Column name -> type (f float, i integer, s text); the table's columns in order.
 COLUMN_TYPES: dict[str, str] = {
@@ -145,6 +146,15 @@ class TrajectoryRecorder(StepHook):
         if self.stats is not None:
             self.stats.add_step(record.time_s, columns)
             self.stats.add_events(record.events)
+            for v in vehicles:
+                inboxes = [m for m in v.sensors.values() if isinstance(m, V2VInbox)]
+                if inboxes:  # several channels: their sums
+                    self.stats.add_v2v(
+                        v.id,
+                        sum(i.sent_total for i in inboxes),
+                        sum(i.received_total for i in inboxes),
+                        sum(i.lost_total for i in inboxes),
+                    )
         if self.writer is not None:
             if vehicles and self.rows_written + len(self._rows) == 0:
                 assert tuple(columns) == TRAJECTORY_COLUMNS, "columns out of order"

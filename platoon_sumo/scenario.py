@@ -35,6 +35,7 @@ from platoon_sumo.control import CONTROLLERS, Controller
 from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (registers)
 from platoon_sumo.sensors import radar as _radar  # noqa: F401 (registers)
+from platoon_sumo.sensors import v2v as _v2v  # noqa: F401 (registers)
 from platoon_sumo.sensors.base import SENSORS, SensorModel
 from platoon_sumo.sensors.laser import LASER_PRESETS, LaserConfig
 from platoon_sumo.sumo.backend import resolve_sumo_path

@@ -657,6 +657,20 @@ LIMIT_CASES = [
         ("'x/y'", *_SAFE_NAME),
         put("platoons.0.leader.sensors", [{"type": "laser", "name": "x/y"}]),
     ),
+    Case(
+        "v2v_unknown_param",
+        "platoons[0].leader.sensors[0].params.delay",
+        ("unknown key", "allowed:", "delay_s"),
+        put("platoons.0.leader.sensors", [{"type": "v2v", "params": {"delay": 0.1}}]),
+        hint="did you mean 'delay_s'?",
+    ),
+    Case(
+        "v2v_burst_key_without_its_model",
+        "platoons[0].leader.sensors[0].params.p_bad_to_good",
+        ("only used with loss_model gilbert_elliott",),
+        put("platoons.0.leader.sensors", [{"type": "v2v", "params": {"p_bad_to_good": 0.2}}]),
+        hint="add `loss_model: gilbert_elliott`",
+    ),
     # route and additional files
     _route_case(
         "route_file_unknown_edge",

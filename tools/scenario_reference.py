@@ -5,7 +5,8 @@ The schema of a scenario file is the tree of frozen dataclasses under
 same tree), so the reference is generated from it: key path, type in YAML words,
 default, and the attribute docstring (the string literal right after a field in the class
 body, read with `ast` because Python does not keep it). Registered controllers (with
-their `Params`), vehicle models and laser presets are listed from their registries, and
+their `Params`), sensor models (with theirs), vehicle models and laser presets are listed
+from their registries, and
 the repository's default scenario is included verbatim as the worked example.
 
     python tools/scenario_reference.py           # (re)write docs/scenarios.md
@@ -31,7 +32,7 @@ from typing import Any, Union, get_args, get_origin, get_type_hints
 
 from platoon_sumo.config_loader import field_bounds
 from platoon_sumo.control import CONTROLLERS
-from platoon_sumo.scenario import CAR_FOLLOW_MODELS, SAFE_ID_TEXT, Scenario
+from platoon_sumo.scenario import CAR_FOLLOW_MODELS, SAFE_ID_TEXT, SENSORS, Scenario
 from platoon_sumo.sensors.laser import (
     LASER_PRESETS,
     MAX_RANGE_M,
@@ -132,6 +133,12 @@ def class_doc(obj: Any) -> str:
     """First paragraph of an object's docstring, on one line."""
     doc = inspect.getdoc(obj) or ""
     return _one_line(doc.split("\n\n")[0])
+
+
+def doc_paragraphs(obj: Any) -> list[str]:
+    """Every paragraph of an object's docstring, each on one line."""
+    doc = inspect.getdoc(obj) or ""
+    return [_one_line(p) for p in doc.split("\n\n") if p.strip()]
 
 
 def _one_line(text: str) -> str:
@@ -310,6 +317,8 @@ def render() -> str:
         out += [f"### `{name}`", "", class_doc(ctrl), ""]
         out += [*table(params_rows(ctrl.Params, "params")), ""]
 
+    out += sensor_section()
+
     out += [
         "## Vehicle models",
         "",
@@ -344,6 +353,29 @@ def render() -> str:
 def _is_generated_doc(cls: type) -> bool:
     """dataclasses writes `Name(field: type, ...)` as the docstring of an undocumented class."""
     return (cls.__doc__ or "").startswith(f"{cls.__name__}(")
+
+
+def sensor_section() -> list[str]:
+    out = [
+        "## Sensor models",
+        "",
+        "`platoons[].leader.sensors[].type` and `platoons[].follower.sensors[].type` name a "
+        "registered sensor model, or a class of your own as `package.module:Class` (a class "
+        "with a `Params` dataclass, `period_s` and `observe()`, see "
+        "`platoon_sumo/sensors/base.py`). Its parameters go under `params` and are checked "
+        "like every other key.",
+        "",
+    ]
+    for name in SENSORS.names():
+        model = SENSORS.get(name)
+        out += [f"### `{name}`", "", class_doc(model), ""]
+        if model.Params is LaserConfig:  # its fields are the presets' columns
+            out += ["Its `params` are the laser's fields, all required (see Laser presets).", ""]
+            continue
+        for paragraph in doc_paragraphs(model.Params):
+            out += [paragraph, ""]
+        out += [*table(params_rows(model.Params, "params")), ""]
+    return out
 
 
 def laser_section() -> list[str]:

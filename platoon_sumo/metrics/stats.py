@@ -32,6 +32,8 @@ SERIES = ("spacing_error", "gap", "ttc", "headway", "accel", "jerk", "lateral",
 _N, _SUM_SQ, _MAX_ABS, _MIN = range(4)
 """Per series: count, sum of squares, largest magnitude, smallest value."""
 _PAIR = len(SERIES) * 4
+#: Per-vehicle (and per-platoon, summed) V2V counts, from the vehicles' V2V inboxes.
+V2V_COLUMNS = ("v2v_sent", "v2v_received", "v2v_lost")
 _PAIR_FIELDS = ("n", "accel_sq", "pred_accel_sq", "speed", "speed_sq", "pred_speed",
                 "pred_speed_sq")  # fmt: skip
 (_ROWS, _STEPS, _FIRST_T, _LAST_T, _PREVIOUS_GAP, _SEEN, _VIEW, _IN_VIEW, _HAD_SCAN,
@@ -79,6 +81,8 @@ class VehicleStats:
     collisions_at_fault: int = 0
     red_light_violations: int = 0
     cut_ins: int = 0
+    v2v: tuple[int, int, int] | None = None
+    """V2V messages sent, received and lost so far; None: no V2V channel."""
 
 
 @dataclass
@@ -274,6 +278,13 @@ class RunStats:
             elif kind is EventKind.CUT_IN:
                 v.cut_ins += 1
 
+    def add_v2v(self, vehicle_id: str, sent: int, received: int, lost: int) -> None:
+        """A vehicle's V2V totals so far (its inboxes' cumulative counts: the latest
+        replace the earlier ones), whole run like the event counts."""
+        v = self.vehicles.get(vehicle_id)
+        if v is not None:
+            v.v2v = (sent, received, lost)
+
     # ------------------------------------------------------------------ results
 
     def vehicle_summaries(self) -> list[dict[str, Any]]:
@@ -326,6 +337,7 @@ class RunStats:
             "collisions": v.collisions,
             "collisions_at_fault": v.collisions_at_fault,
             "red_light_violations": v.red_light_violations,
+            **dict(zip(V2V_COLUMNS, v.v2v or (None, None, None), strict=True)),
         }
 
     def followers(self) -> dict[str, dict[str, dict[str, Any]]]:
@@ -390,6 +402,12 @@ def _min(values: Iterable[float | None]) -> float | None:
     return min(vals) if vals else None
 
 
+def _total(values: Iterable[int | None]) -> int | None:
+    """The sum of the given values, None when none is."""
+    vals = [v for v in values if v is not None]
+    return sum(vals) if vals else None
+
+
 def peak_error_ratios(members: Sequence[Mapping[str, Any]]) -> list[float | None]:
     """max|e_k| / max|e_(k-1)| for consecutive followers (by member index), k >= 2."""
     followers = sorted(
@@ -431,6 +449,7 @@ def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str,
         "collisions_at_fault": sum(m["collisions_at_fault"] for m in members),
         "emergency_brakings": sum(m["emergency_brakings"] for m in members),
         "red_light_violations": sum(m["red_light_violations"] for m in members),
+        **{key: _total(m[key] for m in members) for key in V2V_COLUMNS},
     }
 
 

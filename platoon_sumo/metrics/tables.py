@@ -9,7 +9,7 @@ from typing import Any
 
 import pandas as pd
 
-from platoon_sumo.metrics.stats import RunStats
+from platoon_sumo.metrics.stats import V2V_COLUMNS, RunStats
 from platoon_sumo.metrics.sumo_outputs import join_trips, trip_metrics
 
 
@@ -50,6 +50,7 @@ def overall(platoons: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "cut_ins": pick("cut_ins", sum),
         "fuel_kg": pick("fuel_kg", sum),
         "co2_kg": pick("co2_kg", sum),
+        **{key: pick(key, sum) for key in V2V_COLUMNS},
     }
 
 

@@ -167,6 +167,9 @@ class VehicleStats:
             "collisions": self.collisions,
             "collisions_at_fault": self.collisions_at_fault,
             "red_light_violations": self.red_light_violations,
+            "v2v_sent": None,  # V2V counts come from inboxes, never from the table
+            "v2v_received": None,
+            "v2v_lost": None,
         }
         return out
 

@@ -146,6 +146,7 @@ def test_platoon_summary_without_followers_has_no_stability_figure():
         max_abs_spacing_error_m=None, rms_spacing_error_m=None, min_gap_m=None, min_ttc_s=None,
         rms_accel_mps2=0.3, rms_jerk_mps3=1.0, max_lateral_deviation_m=None, cut_ins=0,
         collisions=0, collisions_at_fault=0, emergency_brakings=0, red_light_violations=0,
+        v2v_sent=None, v2v_received=None, v2v_lost=None,
     )])  # fmt: skip
     assert p["max_accel_l2_gain"] is None and p["string_stable"] is None
     assert p["intact_share"] is None
