@@ -42,6 +42,8 @@ MIN_DISTURBANCE_MPS = 0.1
 #: A follower whose command was overridden or clipped on more than this share of its
 #: steps is saturated: its gains measure the limits, not its control law.
 MAX_SATURATED_SHARE = 0.05
+#: A disturbed follower whose every gain is below this did not follow (it stood still).
+MIN_FOLLOWING_GAIN = 0.01
 #: A leader is tonal when a single sinusoid explains at least this share of the variance
 #: of its speed.
 MIN_TONE_SHARE = 0.9
@@ -208,8 +210,9 @@ def assess(
     """`string_stable` and `string_stability_verdict` of a platoon, in this order:
 
     - "no followers": no member had a predecessor in the metrics window;
-    - "split": a `split` event, a window step without every follower's predecessor in
-      view (`intact_share < 1`), or a member that never drove;
+    - "split": a `split` event, a member that never drove, a follower's scan without its
+      predecessor (`lost_scans`; and, where every follower scans, `intact_share < 1`),
+      or, under a disturbance, a follower that did not follow (`MIN_FOLLOWING_GAIN`);
     - "no disturbance": the first follower's predecessor (the leader) varied its speed
       by less than `MIN_DISTURBANCE_MPS` (standard deviation) over their common window;
     - "unstable": a follower saturated on at most `MAX_SATURATED_SHARE` of its steps has
@@ -225,11 +228,18 @@ def assess(
     )
     if not followers:
         return _verdict(NO_FOLLOWERS)
-    if splits or (intact_share is not None and intact_share < 1.0) or len(members) < planned:
+    # followers without a laser have no view to lose (intact_share counts them as out)
+    scanning = all(m.get("in_view_share") is not None for m in followers)
+    lost_view = any(m.get("lost_scans") for m in followers) or (
+        scanning and intact_share is not None and intact_share < 1.0
+    )
+    if splits or lost_view or len(members) < planned:
         return _verdict(SPLIT)
     disturbance = followers[0].get("predecessor_speed_std_mps")
     if disturbance is None or disturbance < MIN_DISTURBANCE_MPS:
         return _verdict(NO_DISTURBANCE)
+    if any((g := follower_gain(m)) is not None and g < MIN_FOLLOWING_GAIN for m in followers):
+        return _verdict(SPLIT)
     free = [m for m in followers if m["saturated_share"] <= MAX_SATURATED_SHARE]
     free_gains = [follower_gain(m) for m in free]
     if any(g is not None and g > 1.0 for g in free_gains):

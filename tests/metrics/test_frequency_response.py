@@ -213,9 +213,12 @@ def test_norm_ratios():
     assert ss.norm_ratios(np.zeros(3), np.ones(3)) == (None, None)
 
 
-def follower(index: int, gain: float | None, saturated: float = 0.0, std: float = 1.0) -> dict:
+def follower(index: int, gain: float | None, saturated: float = 0.0, std: float = 1.0,
+             lost: int | None = 0) -> dict:  # fmt: skip
+    """A follower's summary; `lost` None: it has no laser (no scans)."""
     return dict(member_index=index, saturated_share=saturated, accel_l2_gain=gain,
-                predecessor_speed_std_mps=std)  # fmt: skip
+                predecessor_speed_std_mps=std, lost_scans=lost or 0,
+                in_view_share=None if lost is None else 1.0)  # fmt: skip
 
 
 @pytest.mark.parametrize(
@@ -225,6 +228,9 @@ def follower(index: int, gain: float | None, saturated: float = 0.0, std: float 
         ([follower(1, 0.8), follower(2, 1.1)], 0, 1.0, "unstable"),
         ([follower(1, 0.0), follower(2, 0.0)], 1, 1.0, "split"),  # gain 0: it never moved
         ([follower(1, 0.8), follower(2, 0.9)], 0, 0.97, "split"),
+        ([follower(1, 0.8), follower(2, 0.9, lost=3)], 0, None, "split"),
+        ([follower(1, 0.8, lost=None), follower(2, 0.9, lost=None)], 0, 0.0, "stable"),
+        ([follower(1, 0.8, lost=None), follower(2, 0.0, lost=None)], 0, 0.0, "split"),
         ([follower(1, 0.8)], 0, 1.0, "split"),  # two planned, one drove
         ([follower(1, 0.8), follower(2, 0.9, saturated=0.2)], 0, 1.0, "saturated"),
         ([follower(1, 1.3), follower(2, 0.9, saturated=0.2)], 0, 1.0, "unstable"),
