@@ -27,7 +27,7 @@ from platoon_sumo.metrics.kernels import (
     PathTrail,
     jerk_mps3,
     spacing_error_m,
-    time_headway_s,
+    time_gap_s,
     time_to_collision_s,
 )
 from platoon_sumo.metrics.stats import RunStats
@@ -43,7 +43,7 @@ COLUMN_TYPES: dict[str, str] = {
     "lane_width_m": "f", "lane_id": "s", "signal_tls": "s", "signal_state": "s",
     "signal_distance_m": "f", "ahead_id": "s", "ahead_gap_m": "f", "predecessor_id": "s",
     "predecessor_speed_mps": "f", "gap_to_predecessor_m": "f", "measured_gap_m": "f",
-    "desired_gap_m": "f", "spacing_error_m": "f", "time_headway_s": "f", "ttc_s": "f",
+    "desired_gap_m": "f", "spacing_error_m": "f", "time_gap_s": "f", "ttc_s": "f",
     "lateral_deviation_m": "f", "predecessor_rays": "i", "predecessor_in_view": "i",
     "supervisor": "s",
     "controller_mode": "s",
@@ -221,8 +221,8 @@ class TrajectoryRecorder(StepHook):
             ],
             "desired_gap_m": desired,
             "spacing_error_m": [spacing_error_m(g, d) for g, d in zip(gaps, desired, strict=True)],
-            "time_headway_s": [
-                time_headway_s(g, v.speed_mps) if h else None
+            "time_gap_s": [
+                time_gap_s(g, v.speed_mps) if h else None
                 for g, v, h in zip(gaps, vs, has_pred, strict=True)
             ],
             "ttc_s": [

@@ -148,11 +148,15 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         statistics_file=str(directory / "sumo_statistics.xml"),
         extra_args=sumo_output_args(directory) if out.sumo_outputs else (),
     )
-    stats = RunStats({p.config.id: len(p.members) for p in plan.platoons}, out.metrics_start_s)
-    recorder = TrajectoryRecorder(
-        directory / f"trajectories.{out.format}", out.chunk_rows, out.format, stats,
-        write=out.trajectories,
+    stats = RunStats(
+        {p.config.id: len(p.members) for p in plan.platoons}, out.metrics_start_s,
+        {p.config.id: (p.limits.max_accel_mps2, p.limits.max_decel_mps2, p.limits.max_speed_mps)
+         for p in plan.platoons},
     )  # fmt: skip
+    trajectories = directory / f"trajectories.{out.format}"
+    recorder = TrajectoryRecorder(
+        trajectories, out.chunk_rows, out.format, stats, write=out.trajectories
+    )
     all_hooks: list[StepHook] = [recorder, EventWriter(directory / "events.csv")]
     snapshot = None
     if any(m.laser is not None for p in plan.platoons for m in p.members):
@@ -188,10 +192,13 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
     summary = _summary(plan, sim, end_time, wall_s)
     summary["followers"] = stats.followers()
     trips, sumo_summary, edgedata, persons = read_run_outputs(directory)
-    vehicles, platoons = summary_tables(stats, trips)
+    vehicles, platoons, responses = summary_tables(
+        stats, trips, trajectories if out.trajectories else None
+    )
     write_table(directory / "vehicles.csv", vehicles)
     write_table(directory / "platoons.csv", platoons)
     summary["platoons"] = by_id(platoons, "platoon_id")
+    summary["string_stability"] = responses
     summary["overall"] = overall(platoons)
     platoon_ids = [m.vehicle_id for p in plan.platoons for m in p.members]
     route_edges = sorted({e for p in plan.platoons for e in p.edges})

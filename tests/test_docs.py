@@ -64,15 +64,16 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory):
 
 
 def _flat_keys(mapping: dict, prefix: str = "") -> list[str]:
-    """Dotted key paths of the summary's values; `versions`, `followers`, `platoons` and
-    `other_trips` (keyed by package / vehicle / platoon ids / vehicle classes) are
-    documented as one key each."""
+    """Dotted key paths of the summary's values; `versions`, `followers`, `platoons`,
+    `string_stability` and `other_trips` (keyed by package / vehicle / platoon ids /
+    vehicle classes) are documented as one key each."""
     keys = []
     for key, value in mapping.items():
         if isinstance(value, dict) and key not in (
             "versions",
             "followers",
             "platoons",
+            "string_stability",
             "other_trips",
         ):
             keys += _flat_keys(value, f"{prefix}{key}.")

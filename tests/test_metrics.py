@@ -27,9 +27,9 @@ def test_follower_metrics_on_a_straight_platoon_with_an_offset_follower():
                          predecessor_rays=0 if k in (0, 1, 5) else 12))  # fmt: skip
     m = follower_metrics(table(rows))["p"]["p.1"]
     assert m["steps"] == 10
-    # first seen at k = 2; afterwards lost once (k = 5) in 8 scans
+    # first seen at k = 2; afterwards lost once (k = 5) in 8 scans (the in-view share)
     assert m["in_view_share"] == pytest.approx(7 / 8)
-    assert m["lost_scans"] == 1
+    assert m["lost_scans"] == 3  # from its first scan: k = 0, 1 (never yet seen) and 5
     assert m["min_gap_m"] == 5.0
     assert m["rms_spacing_error_m"] == pytest.approx(1.0)
     # the leader's path spans x 10..19: only follower points with 10 < x < 19 are beside it

@@ -1,9 +1,10 @@
 """Platoon metrics: per-step formulas, bounded-memory summaries, SUMO's own outputs.
 
-- `kernels`: one step's formulas (spacing error, time headway, time to collision, jerk,
+- `kernels`: one step's formulas (spacing error, time gap, time to collision, jerk,
   deviation from the predecessor's path, l2 gain).
 - `stats`: `RunStats`, per-vehicle and per-platoon summaries accumulated step by step
   (the recorder feeds it online; `summarise_trajectories` feeds it a table).
+- `string_stability`: frequency responses from member to member, and the verdict.
 - `sumo_outputs`: tripinfo (with emissions), summary and edgeData read from SUMO.
 
 Every metric is defined in docs/metrics.md.
@@ -29,16 +30,18 @@ def summarise_trajectories(
     planned: Mapping[str, int] | None = None,
     start_s: float = 0.0,
     events: pd.DataFrame | None = None,
+    limits: Mapping[str, tuple[float, float, float]] | None = None,
 ) -> RunStats:
     """Feed a trajectory table (and the run's `events.csv`, for the event counts) to
-    `RunStats`, step by step: the same numbers the run computed online.
+    `RunStats`, step by step: the same numbers the run computed online (given the
+    platoons' vehicle `limits`, as `RunStats` takes them).
 
     Tables without `lateral_deviation_m` (hand-built ones) get it by replaying each
     predecessor's path as the recorder does (every position kept).
     """
     replay = "lateral_deviation_m" not in trajectories.columns
     trails: dict[str, PathTrail] = {}
-    stats = RunStats(planned, start_s)
+    stats = RunStats(planned, start_s, limits)
     for time_s, columns in table_steps(trajectories):
         if replay:
             xs, ys = columns["x_m"].astype(float), columns["y_m"].astype(float)

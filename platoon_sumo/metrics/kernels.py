@@ -12,8 +12,8 @@ import numpy as np
 
 from platoon_sumo.kernels.trail import trail_deviation
 
-#: Below this speed [m/s] the time headway is undefined (a standing vehicle has no headway).
-HEADWAY_MIN_SPEED_MPS = 0.01
+#: Below this speed [m/s] the time gap is undefined (a standing vehicle has no time gap).
+TIME_GAP_MIN_SPEED_MPS = 0.01
 #: Closing speeds [m/s] at or below this give no time to collision (not closing in).
 TTC_MIN_CLOSING_MPS = 1e-6
 
@@ -25,10 +25,11 @@ def spacing_error_m(gap_m: float | None, desired_gap_m: float | None) -> float |
     return gap_m - desired_gap_m
 
 
-def time_headway_s(gap_m: float | None, speed_mps: float) -> float | None:
-    """Gap over own speed [s]: how long until the follower reaches where the predecessor's
-    rear is now; None at (near) standstill."""
-    if gap_m is None or speed_mps <= HEADWAY_MIN_SPEED_MPS:
+def time_gap_s(gap_m: float | None, speed_mps: float) -> float | None:
+    """Bumper-to-bumper gap over own speed [s]: how long until the follower reaches where
+    the predecessor's rear is now (a time gap; a time headway would be measured front to
+    front, the predecessor's length more); None at (near) standstill."""
+    if gap_m is None or speed_mps <= TIME_GAP_MIN_SPEED_MPS:
         return None
     return gap_m / speed_mps
 

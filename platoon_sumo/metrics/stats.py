@@ -5,7 +5,8 @@
 `summarise_trajectories` feeds it a table, so both give the same numbers. Every
 quantity is a running sum, count, minimum or maximum, kept in one per-vehicle state
 table: memory grows with the number of platoon vehicles, never with the run's length.
-Formulas: docs/metrics.md.
+The frequency responses, which need whole series, are computed after the run
+(`platoon_sumo.metrics.string_stability`). Formulas: docs/metrics.md.
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import l2_gain
+from platoon_sumo.metrics.string_stability import assess
 
 Columns = Mapping[str, Sequence[Any] | np.ndarray]
 """One step's trajectory rows as columns: name -> one value per vehicle (None, NaN or ""
 for a missing value)."""
 
 #: The running series of each vehicle, and the per-vehicle state columns.
-SERIES = ("spacing_error", "gap", "ttc", "headway", "accel", "jerk", "lateral",
+SERIES = ("spacing_error", "gap", "ttc", "time_gap", "accel", "jerk", "lateral",
           "gap_measurement_error")  # fmt: skip
 _N, _SUM_SQ, _MAX_ABS, _MIN = range(4)
 """Per series: count, sum of squares, largest magnitude, smallest value."""
@@ -36,12 +38,17 @@ _PAIR = len(SERIES) * 4
 V2V_COLUMNS = ("v2v_sent", "v2v_received", "v2v_lost")
 _PAIR_FIELDS = ("n", "accel_sq", "pred_accel_sq", "speed", "speed_sq", "pred_speed",
                 "pred_speed_sq")  # fmt: skip
-(_ROWS, _STEPS, _FIRST_T, _LAST_T, _PREVIOUS_GAP, _SEEN, _VIEW, _IN_VIEW, _HAD_SCAN,
- _HAS_PRED) = range(_PAIR + len(_PAIR_FIELDS), _PAIR + len(_PAIR_FIELDS) + 10)  # fmt: skip
-_WIDTH = _HAS_PRED + 1
+(_ROWS, _STEPS, _FIRST_T, _LAST_T, _PREVIOUS_GAP, _SEEN, _VIEW, _IN_VIEW, _SCANS,
+ _HAS_PRED, _FOLLOWING, _SATURATED, _MAX_ACCEL, _MAX_DECEL, _MAX_SPEED,
+ ) = range(_PAIR + len(_PAIR_FIELDS), _PAIR + len(_PAIR_FIELDS) + 15)  # fmt: skip
+_WIDTH = _MAX_SPEED + 1
+_LIMITS = [_MAX_ACCEL, _MAX_DECEL, _MAX_SPEED]
 _INITIAL = np.zeros(_WIDTH)
 _INITIAL[[4 * k + _MIN for k in range(len(SERIES))]] = math.inf
 _INITIAL[[_FIRST_T, _LAST_T, _PREVIOUS_GAP]] = math.nan
+_INITIAL[_LIMITS] = math.inf  # no limit known: never at it
+#: A follower's acceleration or speed within this of its vehicle's limit is at the limit.
+AT_LIMIT_TOLERANCE = 1e-3
 
 
 def _series(name: str) -> int:
@@ -99,15 +106,22 @@ class RunStats:
     """Feed it every step's columns; read `vehicle_summaries()` / `platoon_summaries()`.
 
     `planned`: members per platoon (from the scenario); platoons not in it count the
-    members seen. Quality metrics use the rows from `start_s` on; event counts
-    (collisions, emergency brakings, red lights, cut-ins) the whole run. A step is
-    folded in with array operations over its vehicles (each vehicle once a step), so
-    the cost per vehicle is a few array elements, not a Python loop.
+    members seen. `limits`: (max acceleration, max deceleration, max speed) of each
+    platoon's vehicles, to tell when a follower drives at them (saturation); platoons
+    not in it are only checked for supervisor interventions. Quality metrics use the
+    rows from `start_s` on; event counts (collisions, emergency brakings, red lights,
+    cut-ins) the whole run. A step is folded in with array operations over its vehicles
+    (each vehicle once a step), so the cost per vehicle is a few array elements, not a
+    Python loop.
     """
 
-    def __init__(self, planned: Mapping[str, int] | None = None, start_s: float = 0.0):
+    def __init__(
+        self, planned: Mapping[str, int] | None = None, start_s: float = 0.0,
+        limits: Mapping[str, tuple[float, float, float]] | None = None,
+    ):  # fmt: skip
         self.planned = dict(planned or {})
         self.start_s = start_s
+        self.limits = dict(limits or {})
         self.vehicles: dict[str, VehicleStats] = {}
         self.platoons: dict[str, PlatoonStats] = {}
         self._state = np.tile(_INITIAL, (16, 1))
@@ -131,9 +145,12 @@ class RunStats:
             self._state = np.vstack([self._state, np.tile(_INITIAL, (row, 1))])
         index: Any = columns["member_index"][k] if "member_index" in columns else None
         role: Any = columns["role"][k] if "role" in columns else None
+        platoon = str(columns["platoon_id"][k])
+        if platoon in self.limits:
+            self._state[row, _LIMITS] = self.limits[platoon]
         return VehicleStats(
-            vid, str(columns["platoon_id"][k]),
-            int(index) if given(index) else 0, str(role) if given(role) else "", row,
+            vid, platoon, int(index) if given(index) else 0, str(role) if given(role) else "",
+            row,
         )  # fmt: skip
 
     def _add(self, name: str, rows: np.ndarray, x: np.ndarray) -> None:
@@ -195,15 +212,22 @@ class RunStats:
         error = np.where(np.isnan(error), gap - desired, error)  # NaN if either is missing
         self._add("spacing_error", r, error[has_pred])
         self._add("gap", r, gap[has_pred])
-        for name, key in (("ttc", "ttc_s"), ("headway", "time_headway_s"),
+        for name, key in (("ttc", "ttc_s"), ("time_gap", "time_gap_s"),
                           ("lateral", "lateral_deviation_m")):  # fmt: skip
             self._add(name, r, _floats(columns, key, n)[has_pred])
         measured = _floats(columns, "measured_gap_m", n)
         self._add("gap_measurement_error", r, (measured - previous_gap)[has_pred])
+        speed = _floats(columns, "speed_mps", n)
+        state[r, _FOLLOWING] += 1.0
+        supervisor = columns.get("supervisor", [None] * n)
+        overridden = np.fromiter((given(s) for s, h in zip(supervisor, has_pred, strict=True)
+                                  if h), dtype=bool, count=len(r))  # fmt: skip
+        limits = state[np.ix_(r, _LIMITS)]
+        state[r, _SATURATED] += overridden | _at_limits(accel[has_pred], speed[has_pred], limits)
         view = in_view[has_pred]
         known = ~np.isnan(view)
         rk, saw = r[known], view[known] > 0.0
-        state[rk, _HAD_SCAN] = 1.0
+        state[rk, _SCANS] += 1.0
         seen = (state[rk, _SEEN] > 0.0) | saw
         state[rk, _SEEN] = seen
         state[rk[seen], _VIEW] += 1.0
@@ -215,7 +239,6 @@ class RunStats:
             (at.get(str(p), -1) if h else -1 for p, h in zip(pred_ids, has_pred, strict=True)),
             dtype=np.intp, count=n,
         )  # fmt: skip
-        speed = _floats(columns, "speed_mps", n)
         both = pred >= 0
         k = np.flatnonzero(both)
         pa, ps = accel[pred[k]], speed[pred[k]]
@@ -308,7 +331,8 @@ class RunStats:
 
         seen = bool(state[_SEEN])
         view, in_view = int(state[_VIEW]), int(state[_IN_VIEW])
-        share = in_view / view if seen else (0.0 if state[_HAD_SCAN] else None)
+        share = in_view / view if seen else (0.0 if state[_SCANS] else None)
+        following = state[_FOLLOWING]
         return {
             "vehicle_id": v.vehicle_id,
             "platoon_id": v.platoon_id,
@@ -321,7 +345,7 @@ class RunStats:
             "max_abs_spacing_error_m": peak("spacing_error"),
             "min_gap_m": smallest("gap"),
             "min_ttc_s": smallest("ttc"),
-            "min_time_headway_s": smallest("headway"),
+            "min_time_gap_s": smallest("time_gap"),
             "rms_accel_mps2": rms("accel"),
             "max_abs_accel_mps2": peak("accel"),
             "rms_jerk_mps3": rms("jerk"),
@@ -330,7 +354,8 @@ class RunStats:
             "max_lateral_deviation_m": peak("lateral"),
             "rms_gap_measurement_error_m": rms("gap_measurement_error"),
             "in_view_share": share,
-            "lost_steps": view - in_view if seen else None,
+            "lost_scans": int(state[_SCANS]) - in_view if following else None,
+            "saturated_share": state[_SATURATED] / following if following else None,
             **_pair_gains(state[_PAIR : _PAIR + len(_PAIR_FIELDS)]),
             "cut_ins": v.cut_ins,
             "emergency_brakings": v.emergency_brakings,
@@ -348,11 +373,10 @@ class RunStats:
             if not self._state[v.row, _HAS_PRED]:
                 continue
             s = self._summary(v)
-            seen = bool(self._state[v.row, _SEEN])
             entry: dict[str, Any] = {
                 "steps": int(self._state[v.row, _ROWS]),
                 "in_view_share": s["in_view_share"],
-                "lost_scans": s["lost_steps"] if seen else int(self._state[v.row, _VIEW]),
+                "lost_scans": s["lost_scans"],
                 "min_gap_m": s["min_gap_m"],
                 "rms_spacing_error_m": s["rms_spacing_error_m"],
             }
@@ -362,25 +386,44 @@ class RunStats:
             out.setdefault(v.platoon_id, {})[v.vehicle_id] = entry
         return out
 
-    def platoon_summaries(self) -> list[dict[str, Any]]:
+    def platoon_summaries(
+        self, vehicles: Sequence[Mapping[str, Any]] | None = None,
+        methods: Mapping[str, str | None] | None = None,
+    ) -> list[dict[str, Any]]:  # fmt: skip
+        """One row per platoon from `vehicles` (default: `vehicle_summaries()`; rows with
+        the frequency responses' fields after the run) and each platoon's frequency
+        response method (`methods`)."""
         result = []
-        vehicles = self.vehicle_summaries()
+        vehicles = self.vehicle_summaries() if vehicles is None else vehicles
         for pid in sorted({v["platoon_id"] for v in vehicles}):
             members = [v for v in vehicles if v["platoon_id"] == pid]
             p = self.platoons.get(pid) or PlatoonStats(pid, self.planned.get(pid, len(members)))
-            result.append(platoon_summary(p, members))
+            result.append(platoon_summary(p, members, (methods or {}).get(pid)))
         return result
 
 
 def _pair_gains(pair: list[float]) -> dict[str, float | None]:
     """l2 gains of a follower's acceleration and speed deviations (from their mean over
-    the common window) against its predecessor's."""
+    the common window) against its predecessor's, and the predecessor's speed deviation
+    (the disturbance the follower received)."""
     n, accel_sq, pred_accel_sq, speed, speed_sq, pred_speed, pred_speed_sq = pair
     if not n:
-        return {"accel_l2_gain": None, "speed_l2_gain": None}
+        return {"accel_l2_gain": None, "speed_l2_gain": None, "predecessor_speed_std_mps": None}
     own = max(speed_sq - speed**2 / n, 0.0)
     pred = max(pred_speed_sq - pred_speed**2 / n, 0.0)
-    return {"accel_l2_gain": l2_gain(accel_sq, pred_accel_sq), "speed_l2_gain": l2_gain(own, pred)}
+    return {
+        "accel_l2_gain": l2_gain(accel_sq, pred_accel_sq),
+        "speed_l2_gain": l2_gain(own, pred),
+        "predecessor_speed_std_mps": math.sqrt(pred / n),
+    }
+
+
+def _at_limits(accel: np.ndarray, speed: np.ndarray, limits: np.ndarray) -> np.ndarray:
+    """Where vehicles drive at their limits (`limits` rows: max acceleration, max
+    deceleration, max speed); NaN values are not."""
+    tol = AT_LIMIT_TOLERANCE
+    max_accel, max_decel, max_speed = limits.T
+    return (accel >= max_accel - tol) | (accel <= tol - max_decel) | (speed >= max_speed - tol)
 
 
 def _in_view(columns: Columns, n: int) -> np.ndarray:
@@ -421,19 +464,33 @@ def peak_error_ratios(members: Sequence[Mapping[str, Any]]) -> list[float | None
     return ratios
 
 
-def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str, Any]:
-    """One platoons.csv row from the platoon's counters and its members' summaries."""
-    accel_gains = [m["accel_l2_gain"] for m in members]
-    speed_gains = [m["speed_l2_gain"] for m in members]
-    max_accel_gain = _max(accel_gains)
+def platoon_summary(
+    p: PlatoonStats, members: Sequence[Mapping[str, Any]], method: str | None = None
+) -> dict[str, Any]:
+    """One platoons.csv row from the platoon's counters and its members' summaries (with
+    their frequency-response fields, and the platoon's `method`, when estimated)."""
+    intact_share = p.intact_steps / p.complete_steps if p.complete_steps else None
+    followers = sorted((m for m in members if m.get("saturated_share") is not None),
+                       key=lambda m: m["member_index"])  # fmt: skip
+    leader_speed_std = followers[0].get("predecessor_speed_std_mps") if followers else None
+    worst = max(
+        (m for m in followers if m.get("frequency_gain") is not None),
+        key=lambda m: m["frequency_gain"], default=None,
+    )  # fmt: skip
     return {
         "platoon_id": p.platoon_id,
         "members": p.members,
         "vehicles_seen": len(members),
-        "max_accel_l2_gain": max_accel_gain,
-        "max_speed_l2_gain": _max(speed_gains),
+        **assess(members, p.members, p.splits, intact_share),
+        "leader_speed_std_mps": leader_speed_std,
+        "max_saturated_share": _max(m["saturated_share"] for m in followers),
+        "max_accel_l2_gain": _max(m.get("accel_l2_gain") for m in members),
+        "max_speed_l2_gain": _max(m.get("speed_l2_gain") for m in members),
+        "frequency_response": method,
+        "max_frequency_gain": worst["frequency_gain"] if worst else None,
+        "max_frequency_gain_hz": worst["frequency_gain_hz"] if worst else None,
+        "max_spacing_error_l2_ratio": _max(m.get("spacing_error_l2_ratio") for m in members),
         "max_spacing_error_peak_ratio": _max(peak_error_ratios(members)),
-        "string_stable": None if max_accel_gain is None else bool(max_accel_gain <= 1.0),
         "max_rms_spacing_error_m": _max(m["rms_spacing_error_m"] for m in members),
         "max_abs_spacing_error_m": _max(m["max_abs_spacing_error_m"] for m in members),
         "min_gap_m": _min(m["min_gap_m"] for m in members),
@@ -442,7 +499,7 @@ def platoon_summary(p: PlatoonStats, members: list[dict[str, Any]]) -> dict[str,
         "max_rms_jerk_mps3": _max(m["rms_jerk_mps3"] for m in members),
         "max_lateral_deviation_m": _max(m["max_lateral_deviation_m"] for m in members),
         "complete_steps": p.complete_steps,
-        "intact_share": p.intact_steps / p.complete_steps if p.complete_steps else None,
+        "intact_share": intact_share,
         "splits": p.splits,
         "cut_ins": sum(m["cut_ins"] for m in members),
         "collisions": sum(m["collisions"] for m in members),

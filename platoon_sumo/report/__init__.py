@@ -81,9 +81,12 @@ PLATOON_COLUMNS = (
     ("max_abs_spacing_error_m", "peak spacing error [m]"),
     ("min_gap_m", "min gap [m]"),
     ("min_ttc_s", "min TTC [s]"),
+    ("string_stability_verdict", "string stability"),
+    ("max_frequency_gain", "frequency response, worst gain [-]"),
+    ("max_frequency_gain_hz", "frequency of the worst gain [Hz]"),
     ("max_accel_l2_gain", "accel. l2 gain, max [-]"),
     ("max_spacing_error_peak_ratio", "peak spacing error ratio, max [-]"),
-    ("string_stable", "string stable"),
+    ("max_saturated_share", "share of steps saturated, worst follower [-]"),
     ("max_rms_accel_mps2", "RMS accel., worst [m/s²]"),
     ("max_rms_jerk_mps3", "RMS jerk, worst [m/s³]"),
     ("max_lateral_deviation_m", "max lateral deviation [m]"),
@@ -223,20 +226,20 @@ def _report_text(
 def comparison_table(
     runs: Sequence[tuple[Path, dict[str, Any]]],
 ) -> pd.DataFrame:
-    """One row per (folder, summary): the worst platoon's figures (`overall`) and the
-    traffic effect."""
+    """One row per (folder, summary): the worst platoon's figures (`overall`), the
+    string-stability verdicts of its platoons, and the traffic effect."""
     rows = []
     for d, summary in runs:
         row: dict[str, Any] = {"run": d.name, "scenario": summary.get("scenario"),
                                "seed": summary.get("seed")}  # fmt: skip
         row.update(summary.get("overall", {}))
         platoons = summary.get("platoons", {})
-        for key in ("max_spacing_error_peak_ratio", "string_stable", "collisions",
+        verdicts = {p.get("string_stability_verdict") for p in platoons.values()} - {None}
+        row["string_stability_verdict"] = ", ".join(sorted(verdicts)) if verdicts else None
+        for key in ("max_spacing_error_peak_ratio", "max_frequency_gain", "collisions",
                     "emergency_brakings", "mean_travel_time_s"):  # fmt: skip
             values = [p.get(key) for p in platoons.values() if p.get(key) is not None]
-            if key == "string_stable":
-                row[key] = all(values) if values else None
-            elif key == "mean_travel_time_s":
+            if key == "mean_travel_time_s":
                 row[key] = sum(values) / len(values) if values else None
             else:
                 row[key] = max(values) if values else None

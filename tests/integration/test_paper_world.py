@@ -33,7 +33,7 @@ def test_platoon_keeps_formation_over_a_full_lap_without_collisions(paper_run):
     followers = summary["followers"]["robots"]
     assert sorted(followers) == ["robots.1", "robots.2", "robots.3", "robots.4"]
     for vid, m in followers.items():
-        # after start-up the predecessor is in the follower's scan at every scan
+        # the predecessor is in the follower's scan at every scan, from its first
         assert m["in_view_share"] == 1.0 and m["lost_scans"] == 0, vid
         assert m["min_gap_m"] >= 0.3, vid  # never inside the scanner's minimum range
 

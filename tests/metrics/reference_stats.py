@@ -1,6 +1,8 @@
 """The row-by-row ``RunStats`` as it was before it became columnar (commit f69acf5), kept
 as the test oracle of ``platoon_sumo.metrics.stats``: its summaries from the same steps
-must be the same. Do not use in package code, do not change.
+must be the same. Do not use in package code; change it only where a metric's definition
+changes (since then: `time_gap_s` renamed from `time_headway_s`; `lost_scans` counted from
+the first scan; `saturated_share` and `predecessor_speed_std_mps` added; issue 13).
 
 Per-vehicle and per-platoon summaries, accumulated step by step in bounded memory.
 
@@ -20,7 +22,7 @@ from typing import Any
 
 from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import l2_gain
-from platoon_sumo.metrics.stats import platoon_summary
+from platoon_sumo.metrics.stats import AT_LIMIT_TOLERANCE, platoon_summary
 
 Row = Mapping[str, Any]
 
@@ -105,6 +107,11 @@ class PairEnergy:
         pred = max(self.pred_speed_sq - self.pred_speed**2 / self.n, 0.0)
         return l2_gain(own, pred)
 
+    def pred_speed_std(self) -> float | None:
+        if not self.n:
+            return None
+        return math.sqrt(max(self.pred_speed_sq - self.pred_speed**2 / self.n, 0.0) / self.n)
+
 
 @dataclass
 class VehicleStats:
@@ -119,7 +126,7 @@ class VehicleStats:
     spacing_error: Running = field(default_factory=Running)
     gap: Running = field(default_factory=Running)
     ttc: Running = field(default_factory=Running)
-    headway: Running = field(default_factory=Running)
+    time_gap: Running = field(default_factory=Running)
     accel: Running = field(default_factory=Running)
     jerk: Running = field(default_factory=Running)
     lateral: Running = field(default_factory=Running)
@@ -128,7 +135,10 @@ class VehicleStats:
     seen: bool = False
     view_steps: int = 0
     in_view_steps: int = 0
-    had_scan: bool = False
+    scans: int = 0
+    following_steps: int = 0
+    saturated_steps: int = 0
+    limits: tuple[float, float, float] = (math.inf, math.inf, math.inf)
     has_predecessor: bool = False
     emergency_brakings: int = 0
     collisions: int = 0
@@ -150,7 +160,7 @@ class VehicleStats:
             "max_abs_spacing_error_m": self.spacing_error.peak(),
             "min_gap_m": self.gap.smallest(),
             "min_ttc_s": self.ttc.smallest(),
-            "min_time_headway_s": self.headway.smallest(),
+            "min_time_gap_s": self.time_gap.smallest(),
             "rms_accel_mps2": self.accel.rms(),
             "max_abs_accel_mps2": self.accel.peak(),
             "rms_jerk_mps3": self.jerk.rms(),
@@ -159,9 +169,13 @@ class VehicleStats:
             "max_lateral_deviation_m": self.lateral.peak(),
             "rms_gap_measurement_error_m": self.gap_measurement_error.rms(),
             "in_view_share": self.in_view_share(),
-            "lost_steps": self.view_steps - self.in_view_steps if self.seen else None,
+            "lost_scans": self.scans - self.in_view_steps if self.following_steps else None,
+            "saturated_share": self.saturated_steps / self.following_steps
+            if self.following_steps
+            else None,
             "accel_l2_gain": self.pair.accel_gain(),
             "speed_l2_gain": self.pair.speed_gain(),
+            "predecessor_speed_std_mps": self.pair.pred_speed_std(),
             "cut_ins": self.cut_ins,
             "emergency_brakings": self.emergency_brakings,
             "collisions": self.collisions,
@@ -176,7 +190,7 @@ class VehicleStats:
     def in_view_share(self) -> float | None:
         if self.seen:
             return self.in_view_steps / self.view_steps
-        return 0.0 if self.had_scan else None
+        return 0.0 if self.scans else None
 
     def follower_summary(self) -> dict[str, Any]:
         """The `followers` entry of summary.json (kept from earlier versions)."""
@@ -184,7 +198,7 @@ class VehicleStats:
         out: dict[str, Any] = {
             "steps": self.rows,
             "in_view_share": s["in_view_share"],
-            "lost_scans": s["lost_steps"] if self.seen else (self.view_steps or 0),
+            "lost_scans": s["lost_scans"],
             "min_gap_m": s["min_gap_m"],
             "rms_spacing_error_m": s["rms_spacing_error_m"],
         }
@@ -212,9 +226,13 @@ class RunStats:
     (collisions, emergency brakings, red lights, cut-ins) the whole run.
     """
 
-    def __init__(self, planned: Mapping[str, int] | None = None, start_s: float = 0.0):
+    def __init__(
+        self, planned: Mapping[str, int] | None = None, start_s: float = 0.0,
+        limits: Mapping[str, tuple[float, float, float]] | None = None,
+    ):  # fmt: skip
         self.planned = dict(planned or {})
         self.start_s = start_s
+        self.limits = dict(limits or {})
         self.vehicles: dict[str, VehicleStats] = {}
         self.platoons: dict[str, PlatoonStats] = {}
 
@@ -227,6 +245,7 @@ class RunStats:
             stats = self.vehicles[vid] = VehicleStats(
                 vid, str(row["platoon_id"]), int(row.get("member_index") or 0),
                 str(row.get("role") or ""),
+                limits=self.limits.get(str(row["platoon_id"]), (math.inf,) * 3),
             )  # fmt: skip
         return stats
 
@@ -259,20 +278,28 @@ class RunStats:
             v.spacing_error.add(error)
             v.gap.add(gap)
             v.ttc.add(_num(row, "ttc_s"))
-            v.headway.add(_num(row, "time_headway_s"))
+            v.time_gap.add(_num(row, "time_gap_s"))
             v.lateral.add(_num(row, "lateral_deviation_m"))
             measured = _num(row, "measured_gap_m")
             if measured is not None and previous_gap is not None:
                 v.gap_measurement_error.add(measured - previous_gap)
+            v.following_steps += 1
+            max_accel, max_decel, max_speed = v.limits
+            speed = _num(row, "speed_mps")
+            v.saturated_steps += int(
+                _text(row, "supervisor") is not None
+                or (accel is not None and accel >= max_accel - AT_LIMIT_TOLERANCE)
+                or (accel is not None and accel <= AT_LIMIT_TOLERANCE - max_decel)
+                or (speed is not None and speed >= max_speed - AT_LIMIT_TOLERANCE)
+            )
             in_view = _in_view(row)
             if in_view is not None:
-                v.had_scan = True
+                v.scans += 1
                 v.seen = v.seen or in_view
                 if v.seen:
                     v.view_steps += 1
                     v.in_view_steps += int(in_view)
             pred = by_id.get(pred_id)
-            speed = _num(row, "speed_mps")
             if pred is not None and accel is not None and speed is not None:
                 pa, ps = _num(pred, "accel_mps2"), _num(pred, "speed_mps")
                 if pa is not None and ps is not None:

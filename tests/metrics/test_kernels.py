@@ -14,7 +14,7 @@ from platoon_sumo.metrics.kernels import (
     jerk_mps3,
     l2_gain,
     spacing_error_m,
-    time_headway_s,
+    time_gap_s,
     time_to_collision_s,
 )
 
@@ -25,10 +25,10 @@ def test_spacing_error_is_gap_minus_desired_gap():
     assert spacing_error_m(10.0, None) is None
 
 
-def test_time_headway_is_gap_over_own_speed_and_undefined_at_standstill():
-    assert time_headway_s(20.0, 10.0) == pytest.approx(2.0)
-    assert time_headway_s(20.0, 0.0) is None
-    assert time_headway_s(None, 10.0) is None
+def test_time_gap_is_gap_over_own_speed_and_undefined_at_standstill():
+    assert time_gap_s(20.0, 10.0) == pytest.approx(2.0)
+    assert time_gap_s(20.0, 0.0) is None
+    assert time_gap_s(None, 10.0) is None
 
 
 def test_time_to_collision_only_while_closing_in():

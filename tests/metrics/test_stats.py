@@ -15,10 +15,13 @@ from platoon_sumo.metrics.stats import PlatoonStats, RunStats, platoon_summary
 DT = 0.1
 
 
-def platoon_table(n_steps: int = 50, gain: float = 0.5) -> pd.DataFrame:
+def platoon_table(
+    n_steps: int = 50, gain: float = 0.5, lost: tuple[int, ...] = (10, 11)
+) -> pd.DataFrame:
     """Three members on a straight road. The leader's acceleration is a(t) = sin(t); each
     follower's is `gain` times its predecessor's, sample by sample, so every l2 gain is
-    exactly `gain`. Gaps and desired gaps are set to give known spacing errors."""
+    exactly `gain`. Gaps and desired gaps are set to give known spacing errors; p.2's
+    scans miss p.1 at the steps `lost`."""
     rows = []
     for k in range(n_steps):
         t = k * DT
@@ -38,9 +41,9 @@ def platoon_table(n_steps: int = 50, gain: float = 0.5) -> pd.DataFrame:
                 row.update(
                     predecessor_id=f"p.{i - 1}", desired_gap_m=15.0,
                     gap_to_predecessor_m=15.0 + error, ttc_s=4.0 + i + k,
-                    time_headway_s=1.5 + k * 0.01, lateral_deviation_m=0.1 * i,
-                    predecessor_rays=0 if (i == 2 and k in (10, 11)) else 5,
-                    predecessor_in_view=0 if (i == 2 and k in (10, 11)) else 1,
+                    time_gap_s=1.5 + k * 0.01, lateral_deviation_m=0.1 * i,
+                    predecessor_rays=0 if (i == 2 and k in lost) else 5,
+                    predecessor_in_view=0 if (i == 2 and k in lost) else 1,
                 )  # fmt: skip
             rows.append(row)
     return pd.DataFrame(rows)
@@ -55,11 +58,12 @@ def test_vehicle_summaries_have_the_known_values():
         assert s["max_abs_spacing_error_m"] == pytest.approx(i)
         assert s["min_gap_m"] == pytest.approx(15.0 - i)
         assert s["min_ttc_s"] == pytest.approx(4.0 + i)
-        assert s["min_time_headway_s"] == pytest.approx(1.5)
+        assert s["min_time_gap_s"] == pytest.approx(1.5)
         assert s["rms_lateral_deviation_m"] == pytest.approx(0.1 * i)
         assert s["max_lateral_deviation_m"] == pytest.approx(0.1 * i)
         assert s["accel_l2_gain"] == pytest.approx(0.5)
         assert s["speed_l2_gain"] == pytest.approx(0.5)
+        assert s["saturated_share"] == 0.0
     t = np.arange(50) * DT
     assert v["p.0"]["rms_accel_mps2"] == pytest.approx(np.sqrt(np.mean(np.sin(t) ** 2)))
     jerk = np.diff(np.sin(t)) / DT
@@ -67,22 +71,68 @@ def test_vehicle_summaries_have_the_known_values():
     assert v["p.0"]["accel_l2_gain"] is None  # the leader has no predecessor
     assert v["p.1"]["in_view_share"] == 1.0
     assert v["p.2"]["in_view_share"] == pytest.approx(48 / 50)
-    assert v["p.2"]["lost_steps"] == 2
+    assert v["p.1"]["lost_scans"] == 0 and v["p.2"]["lost_scans"] == 2
+    assert v["p.0"]["lost_scans"] is None and v["p.0"]["saturated_share"] is None
+    # the leader's speed 10 + sin(t) over t = 0 .. 4.9, as p.1 saw it
+    assert v["p.1"]["predecessor_speed_std_mps"] == pytest.approx(np.std(np.sin(t)))
 
 
 def test_platoon_summary_string_stability_and_intactness():
-    stats = summarise_trajectories(platoon_table(gain=0.5), planned={"p": 3})
+    stats = summarise_trajectories(platoon_table(gain=0.5, lost=()), planned={"p": 3})
     (p,) = stats.platoon_summaries()
     assert p["max_accel_l2_gain"] == pytest.approx(0.5)
-    assert p["string_stable"] is True
+    assert p["string_stable"] is True and p["string_stability_verdict"] == "stable"
+    assert p["max_saturated_share"] == 0.0
     # peak |e|: 1 for p.1, 2 for p.2
     assert p["max_spacing_error_peak_ratio"] == pytest.approx(2.0)
-    assert p["intact_share"] == pytest.approx(48 / 50)
+    assert p["intact_share"] == 1.0
     assert p["splits"] == 0  # splits are events of the loop, not read from the rows
     assert p["min_gap_m"] == pytest.approx(13.0)
-    unstable = summarise_trajectories(platoon_table(gain=1.5)).platoon_summaries()[0]
+    unstable = summarise_trajectories(platoon_table(gain=1.5, lost=())).platoon_summaries()[0]
     assert unstable["max_accel_l2_gain"] == pytest.approx(1.5)
     assert unstable["string_stable"] is False
+    assert unstable["string_stability_verdict"] == "unstable"
+
+
+def test_a_platoon_that_split_is_not_string_stable():
+    """p.2 misses p.1 on two scans: whatever the gains, the platoon was not intact."""
+    (p,) = summarise_trajectories(platoon_table(gain=0.5), planned={"p": 3}).platoon_summaries()
+    assert p["intact_share"] == pytest.approx(48 / 50)
+    assert p["max_accel_l2_gain"] == pytest.approx(0.5)
+    assert p["string_stable"] is None and p["string_stability_verdict"] == "split"
+    # a planned member that never drove
+    (p,) = summarise_trajectories(platoon_table(lost=()), planned={"p": 4}).platoon_summaries()
+    assert p["string_stable"] is None and p["string_stability_verdict"] == "split"
+
+
+def test_lost_scans_count_from_the_first_scan_even_if_the_predecessor_is_never_seen():
+    stats = RunStats()
+    for k in range(6):
+        stats.add_step(k * DT, dict(
+            vehicle_id=["p.0", "p.1"], platoon_id=["p", "p"], member_index=[0, 1],
+            role=["leader", "follower"], predecessor_id=[None, "p.0"],
+            predecessor_rays=[None, None if k == 0 else 0],  # no scan yet at k = 0
+        ))  # fmt: skip
+    follower = stats.vehicle_summaries()[1]
+    assert follower["in_view_share"] == 0.0 and follower["lost_scans"] == 5
+    assert stats.followers()["p"]["p.1"]["lost_scans"] == 5
+
+
+def test_saturated_share_counts_supervisor_steps_and_steps_at_the_vehicle_limits():
+    stats = RunStats(limits={"p": (3.0, 8.0, 25.0)})
+    rows = [  # the follower's (acceleration, speed, supervisor state): 4 of 6 saturated
+        (1.0, 15.0, None), (3.0, 15.3, None), (-8.0, 14.5, None), (0.5, 15.0, None),
+        (0.0, 25.0, None), (0.0, 15.0, "emergency"),
+    ]  # fmt: skip
+    for k, (accel, speed, supervisor) in enumerate(rows):
+        stats.add_step(k * DT, dict(
+            vehicle_id=["p.0", "p.1"], platoon_id=["p", "p"], member_index=[0, 1],
+            predecessor_id=[None, "p.0"], accel_mps2=[3.0, accel], speed_mps=[15.0, speed],
+            supervisor=[None, supervisor],
+        ))  # fmt: skip
+    leader, follower = stats.vehicle_summaries()
+    assert follower["saturated_share"] == pytest.approx(4 / 6)
+    assert leader["saturated_share"] is None  # only followers are judged
 
 
 def test_metrics_window_and_event_counts():
@@ -149,4 +199,5 @@ def test_platoon_summary_without_followers_has_no_stability_figure():
         v2v_sent=None, v2v_received=None, v2v_lost=None,
     )])  # fmt: skip
     assert p["max_accel_l2_gain"] is None and p["string_stable"] is None
+    assert p["string_stability_verdict"] == "no followers"
     assert p["intact_share"] is None

@@ -1,7 +1,8 @@
 """The columnar ``RunStats`` against the row-by-row one it replaced
 (``reference_stats.py``, the test oracle): the same vehicle, follower and platoon
 summaries from the same steps, on random tables (missing cells, vehicles coming and
-going, predecessors absent, a metrics window) and on the tables of real runs."""
+going, predecessors absent, a metrics window, supervisor states and vehicle limits) and on
+the tables of real runs."""
 
 from __future__ import annotations
 
@@ -22,15 +23,16 @@ from tests.helpers import REPO
 from tests.metrics import reference_stats
 
 NUMERIC = ("speed_mps", "accel_mps2", "jerk_mps3", "gap_to_predecessor_m", "measured_gap_m",
-           "desired_gap_m", "spacing_error_m", "time_headway_s", "ttc_s",
+           "desired_gap_m", "spacing_error_m", "time_gap_s", "ttc_s",
            "lateral_deviation_m")  # fmt: skip
 
 
 def feed_both(
     steps: list[tuple[float, pd.DataFrame]], planned: dict[str, int], start_s: float,
-    events: list[Event],
+    events: list[Event], limits: dict[str, tuple[float, float, float]] | None = None,
 ) -> tuple[RunStats, reference_stats.RunStats]:  # fmt: skip
-    new, old = RunStats(planned, start_s), reference_stats.RunStats(planned, start_s)
+    new = RunStats(planned, start_s, limits)
+    old = reference_stats.RunStats(planned, start_s, limits)
     for time_s, frame in steps:
         new.add_step(time_s, {c: frame[c].to_numpy() for c in frame.columns})
         clean = frame.astype(object).where(frame.notna(), None)
@@ -78,13 +80,15 @@ def tables(draw: st.DrawFn) -> tuple[list[tuple[float, pd.DataFrame]], float, li
                 if i % 3 else None,
                 predecessor_rays=draw(st.one_of(st.none(), st.integers(0, 4))),
                 predecessor_in_view=draw(st.one_of(st.none(), st.integers(0, 1))),
+                supervisor=draw(st.sampled_from([None, "signal", "emergency"])),
             )  # fmt: skip
             for c in NUMERIC:
                 row[c] = draw(cell)
             rows.append(row)
         frame = pd.DataFrame(rows, columns=["vehicle_id", "platoon_id", "member_index",
                                             "role", "predecessor_id", "predecessor_rays",
-                                            "predecessor_in_view", *NUMERIC])  # fmt: skip
+                                            "predecessor_in_view", "supervisor",
+                                            *NUMERIC])  # fmt: skip
         steps.append((round(k * 0.1, 6), frame))
     start_s = draw(st.sampled_from([0.0, 0.5, 1.0]))
     kinds = [EventKind.COLLISION, EventKind.SPLIT, EventKind.CUT_IN, EventKind.RED_LIGHT,
@@ -99,7 +103,8 @@ def tables(draw: st.DrawFn) -> tuple[list[tuple[float, pd.DataFrame]], float, li
 def test_random_tables_give_the_same_summaries(case, with_plan):
     steps, start_s, events = case
     planned = {"a": 3} if with_plan else {}
-    new, old = feed_both(steps, planned, start_s, events)
+    limits = {"a": (10.0, 20.0, 40.0)} if with_plan else None  # some cells at the limits
+    new, old = feed_both(steps, planned, start_s, events, limits)
     assert_same_summaries(new, old)
 
 
