@@ -175,6 +175,7 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
             backend.add_vehicle_type(
                 platoon.type_id, v.length_m, v.width_m, v.min_gap_m, v.max_speed_mps,
                 v.max_accel_mps2, v.max_decel_mps2, v.vclass, v.sumo_tau_s,
+                v.sumo_speed_factor,
             )  # fmt: skip
         sim = CoSimulation(
             plan,

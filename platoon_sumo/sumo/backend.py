@@ -349,9 +349,12 @@ class SumoBackend:
         decel_mps2: float,
         vclass: str,
         tau_s: float = 1.0,
+        speed_factor: float | None = None,
     ) -> None:
         """A SUMO type for platoon vehicles, so SUMO's drivers see their true size; without
-        driver imperfection, and with `tau_s` for SUMO's safe speed in lane actuation."""
+        driver imperfection, and with `tau_s` for SUMO's safe speed in lane actuation.
+        `speed_factor`: every vehicle's factor on lane speed limits, without spread (None:
+        drawn per vehicle as for SUMO's default type)."""
         vt = libsumo.vehicletype
         try:
             vt.copy("DEFAULT_VEHTYPE", type_id)
@@ -365,6 +368,9 @@ class SumoBackend:
             vt.setEmergencyDecel(type_id, max(decel_mps2, vt.getEmergencyDecel(type_id)))
             vt.setTau(type_id, tau_s)
             vt.setImperfection(type_id, 0.0)
+            if speed_factor is not None:
+                vt.setSpeedFactor(type_id, speed_factor)
+                vt.setSpeedDeviation(type_id, 0.0)
             vt.setColor(type_id, (30, 120, 255, 255))
         except Exception as exc:  # libsumo raises FatalTraCIError for some bad values
             raise SumoError(f"cannot create vehicle type '{type_id}': {exc}") from None
