@@ -50,6 +50,12 @@ MIN_TONE_SHARE = 0.9
 #: Welch bins where the leader's speed has less than this share of its peak power are
 #: not reported (too little input to estimate a gain from).
 MIN_BAND_POWER = 0.01
+#: A gain is estimated only where the member ahead's signal keeps at least this share of
+#: the amplitude it has at the head of the chain (the leader's speed and acceleration,
+#: the first follower's spacing error) at that frequency: a disturbance damped 0.33 per
+#: member is 0.4 % of the leader's after five, and the ratio of two such remnants
+#: measures rounding and noise (gains of 4 from a stable platoon), not the control law.
+MIN_INPUT_SHARE = 0.05
 #: Welch segments are this share of the record (15 half-overlapping segments).
 WELCH_SEGMENTS = 8
 #: Shortest record (samples) for a Welch estimate: segments of 16 samples.
@@ -127,13 +133,10 @@ def tone_gain(x: np.ndarray, y: np.ndarray, dt_s: float, frequency_hz: float) ->
     whole periods that end the record after a transient of half the record, and at least
     one period; None without a whole period or without input at the frequency."""
     n = min(len(x), len(y))
-    period_steps = 1.0 / (frequency_hz * dt_s)
-    transient = max(n / 2.0, period_steps)
-    periods = math.floor((n - transient) / period_steps + 1e-9)
-    if periods < 1:
+    window = _tone_window(n, dt_s, frequency_hz)
+    if window is None:
         return None
-    m = round(periods * period_steps)
-    basis = np.exp(-2j * math.pi * frequency_hz * dt_s * np.arange(m))
+    m, basis = window
     xs = np.asarray(x[n - m : n], dtype=np.float64)
     ys = np.asarray(y[n - m : n], dtype=np.float64)
     xs, ys = xs - xs.mean(), ys - ys.mean()
@@ -141,6 +144,18 @@ def tone_gain(x: np.ndarray, y: np.ndarray, dt_s: float, frequency_hz: float) ->
     if abs(big_x) <= 1e-9 * float(np.abs(xs).sum()):
         return None
     return complex(ys @ basis) / big_x
+
+
+def _tone_window(n: int, dt_s: float, frequency_hz: float) -> tuple[int, np.ndarray] | None:
+    """(m, e^(-jωt) over m samples): the whole periods that end an n-sample record after a
+    transient of half the record, and at least one period; None without a whole period."""
+    period_steps = 1.0 / (frequency_hz * dt_s)
+    transient = max(n / 2.0, period_steps)
+    periods = math.floor((n - transient) / period_steps + 1e-9)
+    if periods < 1:
+        return None
+    m = round(periods * period_steps)
+    return m, np.exp(-2j * math.pi * frequency_hz * dt_s * np.arange(m))
 
 
 def _spectra(
@@ -171,17 +186,50 @@ def welch_gains(
         return freqs, np.where(enough & (pxx > 0.0), np.abs(pxy) / pxx, math.nan)
 
 
-def gains(x: np.ndarray, y: np.ndarray, dt_s: float, exc: Excitation) -> list[float | None]:
+def amplitudes(x: np.ndarray, dt_s: float, exc: Excitation) -> np.ndarray:
+    """The amplitude of `x` at each of the excitation's frequencies (NaN where the record
+    is too short): the tone's over the whole periods `tone_gain` uses, the square root of
+    the Welch power per segment otherwise (comparable between signals, not calibrated)."""
+    x = np.asarray(x, dtype=np.float64)
+    if exc.bins is None:
+        window = _tone_window(len(x), dt_s, float(exc.frequencies_hz[0]))
+        if window is None:
+            return np.array([math.nan])
+        xs, basis = x[len(x) - len(window[1]) :], window[1]
+        return np.array([2.0 * abs(complex((xs - xs.mean()) @ basis)) / len(basis)])
+    if len(x) < max(exc.segment, MIN_WELCH_SAMPLES):
+        return np.full(len(exc.bins), math.nan)
+    _, pxx, _ = _spectra(x, x, dt_s, exc.segment)
+    segments = 1 + (len(x) - exc.segment) // max(exc.segment // 2, 1)
+    return np.sqrt(pxx[exc.bins] / segments)
+
+
+def gains(
+    x: np.ndarray,
+    y: np.ndarray,
+    dt_s: float,
+    exc: Excitation,
+    head_amplitudes: np.ndarray | None = None,
+) -> list[float | None]:
     """|H| from `x` (the member ahead) to `y` at each of the excitation's frequencies;
-    None where it cannot be estimated (record too short, too little input there)."""
+    None where it cannot be estimated (record too short, too little input there, or,
+    given the chain head's `amplitudes`, less than `MIN_INPUT_SHARE` of them)."""
     if exc.bins is None:  # a sinusoid
         h = tone_gain(x, y, dt_s, float(exc.frequencies_hz[0]))
-        return [None if h is None else abs(h)]
-    n = min(len(x), len(y))
-    if n < max(exc.segment, MIN_WELCH_SAMPLES):
-        return [None] * len(exc.bins)
-    gain = welch_gains(x[:n], y[:n], dt_s, exc.segment)[1][exc.bins]
-    return [None if math.isnan(g) else float(g) for g in gain]
+        found = [None if h is None else abs(h)]
+    else:
+        n = min(len(x), len(y))
+        if n < max(exc.segment, MIN_WELCH_SAMPLES):
+            return [None] * len(exc.bins)
+        gain = welch_gains(x[:n], y[:n], dt_s, exc.segment)[1][exc.bins]
+        found = [None if math.isnan(g) else float(g) for g in gain]
+    if head_amplitudes is None:
+        return found
+    own = amplitudes(x, dt_s, exc)
+    return [
+        g if a >= MIN_INPUT_SHARE * h else None  # NaN compares False: not estimated
+        for g, a, h in zip(found, own, head_amplitudes, strict=True)
+    ]
 
 
 def norm_ratios(previous: np.ndarray, own: np.ndarray) -> tuple[float | None, float | None]:
@@ -216,7 +264,9 @@ def assess(
     - "no disturbance": the first follower's predecessor (the leader) varied its speed
       by less than `MIN_DISTURBANCE_MPS` (standard deviation) over their common window;
     - "unstable": a follower saturated on at most `MAX_SATURATED_SHARE` of its steps has
-      a gain (`follower_gain`) above 1: it amplifies by its own control law;
+      a gain (`follower_gain`) above 1: it amplifies by its own control law (followers
+      whose predecessor's speed kept less than `MIN_INPUT_SHARE` of the leader's
+      variation are not judged: the disturbance died out before them);
     - "saturated": a follower saturated on more than that share of its steps;
     - "stable": otherwise (every gain at most 1).
 
@@ -238,13 +288,21 @@ def assess(
     disturbance = followers[0].get("predecessor_speed_std_mps")
     if disturbance is None or disturbance < MIN_DISTURBANCE_MPS:
         return _verdict(NO_DISTURBANCE)
-    if any((g := follower_gain(m)) is not None and g < MIN_FOLLOWING_GAIN for m in followers):
+    # followers whose predecessor kept less than MIN_INPUT_SHARE of the leader's speed
+    # variation: the platoon damped the disturbance before them, their gains are ratios
+    # of remnants (rounding, noise) and are not judged
+    reached = [
+        m
+        for m in followers
+        if (m.get("predecessor_speed_std_mps") or 0.0) >= MIN_INPUT_SHARE * disturbance
+    ]
+    if any((g := follower_gain(m)) is not None and g < MIN_FOLLOWING_GAIN for m in reached):
         return _verdict(SPLIT)
-    free = [m for m in followers if m["saturated_share"] <= MAX_SATURATED_SHARE]
+    free = [m for m in reached if m["saturated_share"] <= MAX_SATURATED_SHARE]
     free_gains = [follower_gain(m) for m in free]
     if any(g is not None and g > 1.0 for g in free_gains):
         return _verdict(UNSTABLE)
-    if len(free) < len(followers):
+    if len(free) < len(reached):
         return _verdict(SATURATED)
     if None in free_gains:  # a follower the disturbance did not reach: nothing to judge
         return _verdict(NO_DISTURBANCE)

@@ -122,6 +122,8 @@ def _platoon_response(rows: pd.DataFrame) -> dict[str, Any] | None:
     exc = ss.excitation(_stretch(tables["speed_mps"][[leader]], dt)[:, 0], dt)
     if exc is None:
         return None
+    members = sorted(vehicles, key=lambda v: index[v])
+    heads = {column: _head_amplitudes(tables[column], members, dt, exc) for _, column in SIGNALS}
     followers = {}
     for vid in sorted(predecessor, key=lambda v: index[v]):
         ahead = predecessor[vid]
@@ -132,7 +134,7 @@ def _platoon_response(rows: pd.DataFrame) -> dict[str, Any] | None:
         for name, column in SIGNALS:
             table = tables[column]
             pair = _stretch(table[[ahead, vid]], dt)
-            found = ss.gains(pair[:, 0], pair[:, 1], dt, exc) if len(pair) else None
+            found = ss.gains(pair[:, 0], pair[:, 1], dt, exc, heads[column]) if len(pair) else None
             entry[f"{name}_gain"] = found
             for g, f in zip(found or [], exc.frequencies_hz, strict=False):
                 if g is not None and g > worst[0]:
@@ -149,6 +151,18 @@ def _platoon_response(rows: pd.DataFrame) -> dict[str, Any] | None:
         "frequencies_hz": [float(f) for f in exc.frequencies_hz],
         "followers": followers,
     }
+
+
+def _head_amplitudes(
+    table: pd.DataFrame, members: list[str], dt: float, exc: ss.Excitation
+) -> np.ndarray | None:
+    """The amplitudes (`string_stability.amplitudes`) of the signal of the first member,
+    in platoon order, that has it (the leader; for spacing errors the first follower)."""
+    for vid in members:
+        series = _stretch(table[[vid]], dt)
+        if len(series):
+            return ss.amplitudes(series[:, 0], dt, exc)
+    return None
 
 
 def _stretch(table: pd.DataFrame, dt: float) -> np.ndarray:

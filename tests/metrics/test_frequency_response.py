@@ -159,6 +159,26 @@ def test_sinusoid_gains_of_a_linear_platoon(tuning, f):
             assert entry["spacing_error_l2_ratio"] <= 1.02 * peak
 
 
+def test_no_gain_from_a_disturbance_the_platoon_already_damped():
+    """0.4 Hz through the stable tuning (|H| 0.30 a member) with measurement noise: the
+    gains are estimated while the member ahead keeps 5 % of the leader's amplitude and
+    reported as not estimated after (a ratio of noise, not the control law)."""
+    dt, f = 0.1, 0.4
+    speeds, accels, errors = platoon(STABLE, 6, dt, 900, (1.0, f))
+    noise = np.random.default_rng(3).normal(0.0, 1e-3, (3, *speeds.shape))
+    table = trajectory_table(speeds + noise[0], accels + noise[1], errors + noise[2], dt)
+    (response,) = frequency_responses(table).values()
+    expected = float(ctg(*STABLE, f))
+    for i in range(1, 7):
+        entry = response["followers"][f"p.{i}"]
+        if expected ** (i - 1) >= ss.MIN_INPUT_SHARE:
+            assert entry["speed_gain"][0] == pytest.approx(expected, rel=0.02)
+            assert entry["accel_gain"][0] == pytest.approx(expected, rel=0.02)
+        else:
+            assert entry["speed_gain"] == entry["accel_gain"] == [None], i
+    assert response["followers"]["p.6"]["frequency_gain"] is None
+
+
 @pytest.mark.parametrize("tuning", [STABLE, UNSTABLE], ids=["stable", "unstable"])
 def test_welch_gains_of_a_linear_platoon_with_a_random_leader(tuning):
     dt = 0.1
@@ -238,6 +258,14 @@ def follower(index: int, gain: float | None, saturated: float = 0.0, std: float 
         ([follower(1, 0.8, std=0.01), follower(2, 0.9)], 0, 1.0, "no disturbance"),
         ([follower(1, 0.8), follower(2, None)], 0, 1.0, "no disturbance"),  # none reached p.2
         ([dict(member_index=0, saturated_share=None)], 0, None, "no followers"),
+        # p.3's predecessor kept 2 % of the leader's speed variation: not judged
+        (
+            [follower(1, 0.5), follower(2, 0.5, std=0.5), follower(3, 4.0, std=0.02)],
+            0,
+            1.0,
+            "stable",
+        ),
+        ([follower(1, 0.5), follower(2, 1.2, std=0.06)], 0, 1.0, "unstable"),
     ],
 )
 def test_verdicts(members, splits, intact, verdict):
