@@ -988,7 +988,9 @@ def test_route_file_that_is_fine_validates(
 
 
 @pytest.mark.parametrize(
-    "scenario", sorted((ROOT / "scenarios").glob("*.yaml")), ids=lambda p: p.stem
+    "scenario",
+    sorted((ROOT / "scenarios").rglob("*.yaml")),
+    ids=lambda p: str(p.relative_to(ROOT / "scenarios").with_suffix("")),
 )
 def test_shipped_scenarios_validate(scenario: Path, capfd: pytest.CaptureFixture[str]) -> None:
     code = main(["validate", str(scenario)])

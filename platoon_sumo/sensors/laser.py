@@ -132,12 +132,16 @@ _DEG = math.pi / 180.0
 
 #: Scanners of the paper (leader / follower, both on a Hokuyo UTM-30LX) and the
 #: UTM-30LX itself (270 deg, 0.25 deg steps, 25 ms per scan) as a car-scale sensor.
+#: "lidar_120m" is a single-layer automotive lidar of the class used for ACC and
+#: platooning research (110 deg, 0.25 deg steps, 120 m, 25 Hz): the UTM-30LX's 30 m
+#: lose a predecessor at a 1.2 s time gap above about 20 m/s.
 #: Presets are noiseless so runs are reproducible; the UTM-30LX datasheet accuracy is
 #: about +-30 mm, i.e. ``LaserConfig.preset("utm30lx", noise_std_m=0.01)``.
 LASER_PRESETS: dict[str, LaserConfig] = {
     "paper_leader": LaserConfig(-90.0 * _DEG, 90.0 * _DEG, 720, 0.30, 3.0),
     "paper_follower": LaserConfig(-11.5 * _DEG, 11.5 * _DEG, 720, 0.30, 1.0),
     "utm30lx": LaserConfig(-135.0 * _DEG, 135.0 * _DEG, 1081, 0.1, 30.0, rate_hz=40.0),
+    "lidar_120m": LaserConfig(-55.0 * _DEG, 55.0 * _DEG, 441, 0.3, 120.0, rate_hz=25.0),
 }
 
 
