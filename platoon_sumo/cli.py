@@ -94,7 +94,8 @@ SHOWN_WARNINGS = 5
 
 
 def _network_warnings(plan: RunPlan) -> None:
-    """What in the network may spoil a run without being an error (stderr)."""
+    """What in the network or the sensing may spoil a run without being an error
+    (stderr)."""
     from platoon_sumo.sumo.signals import long_signal_phases
 
     try:
@@ -105,6 +106,10 @@ def _network_warnings(plan: RunPlan) -> None:
         print(f"warning: {message}", file=sys.stderr)
     if len(found) > SHOWN_WARNINGS:
         print(f"warning: ... and {len(found) - SHOWN_WARNINGS} more long phases", file=sys.stderr)
+    from platoon_sumo.sensing_checks import laser_range_warnings
+
+    for message in laser_range_warnings(plan):
+        print(f"warning: {message}", file=sys.stderr)
     invented: dict[str, list[str]] = {}  # message -> platoons whose route meets it
     for platoon in plan.platoons:
         for message in plan.network.invented_on_route(platoon.edges):

@@ -67,6 +67,12 @@ class Network:
     def edge_length_m(self, edge_id: str) -> float:
         return float(self._normal_edges[edge_id].getLength())
 
+    def max_lane_speed_mps(self, edges: Sequence[str]) -> float:
+        """The highest speed limit of any lane of these edges [m/s]."""
+        return max(
+            float(lane.getSpeed()) for e in edges for lane in self._normal_edges[e].getLanes()
+        )
+
     def lane_count(self, edge_id: str) -> int:
         return len(self._normal_edges[edge_id].getLanes())
 
