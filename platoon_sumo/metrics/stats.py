@@ -22,7 +22,7 @@ import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
 from platoon_sumo.metrics.kernels import l2_gain
-from platoon_sumo.metrics.string_stability import assess
+from platoon_sumo.metrics.string_stability import MIN_INPUT_SHARE, assess
 
 Columns = Mapping[str, Sequence[Any] | np.ndarray]
 """One step's trajectory rows as columns: name -> one value per vehicle (None, NaN or ""
@@ -99,6 +99,8 @@ class PlatoonStats:
     complete_steps: int = 0
     intact_steps: int = 0
     splits: int = 0
+    window_splits: int = 0
+    """Splits from the start of the metrics window (the string-stability verdict's)."""
     _intact: bool = False
 
 
@@ -292,6 +294,7 @@ class RunStats:
                         e.platoon_id, self.planned.get(e.platoon_id, 0)
                     )
                 p.splits += 1
+                p.window_splits += int(e.time_s >= self.start_s - 1e-9)
             elif v is None:
                 continue
             elif kind is EventKind.RED_LIGHT:
@@ -452,15 +455,20 @@ def _total(values: Iterable[int | None]) -> int | None:
 
 
 def peak_error_ratios(members: Sequence[Mapping[str, Any]]) -> list[float | None]:
-    """max|e_k| / max|e_(k-1)| for consecutive followers (by member index), k >= 2."""
+    """max|e_k| / max|e_(k-1)| for consecutive followers (by member index), k >= 2; None
+    where the one ahead's peak is below `MIN_INPUT_SHARE` of the largest follower's (a
+    ratio of remnants of a damped disturbance measures noise, not the control law)."""
     followers = sorted(
         (m for m in members if m.get("max_abs_spacing_error_m") is not None),
         key=lambda m: m["member_index"],
     )
+    if not followers:
+        return []
+    floor = MIN_INPUT_SHARE * max(m["max_abs_spacing_error_m"] for m in followers)
     ratios: list[float | None] = []
     for prev, cur in itertools.pairwise(followers):
         den = prev["max_abs_spacing_error_m"]
-        ratios.append(cur["max_abs_spacing_error_m"] / den if den > 0 else None)
+        ratios.append(cur["max_abs_spacing_error_m"] / den if den > 0 and den >= floor else None)
     return ratios
 
 
@@ -481,7 +489,7 @@ def platoon_summary(
         "platoon_id": p.platoon_id,
         "members": p.members,
         "vehicles_seen": len(members),
-        **assess(members, p.members, p.splits, intact_share),
+        **assess(members, p.members, p.window_splits, intact_share),
         "leader_speed_std_mps": leader_speed_std,
         "max_saturated_share": _max(m["saturated_share"] for m in followers),
         "max_accel_l2_gain": _max(m.get("accel_l2_gain") for m in members),

@@ -215,6 +215,7 @@ class PlatoonStats:
     complete_steps: int = 0
     intact_steps: int = 0
     splits: int = 0
+    window_splits: int = 0
     _intact: bool = False
 
 
@@ -349,6 +350,8 @@ class RunStats:
                         e.platoon_id, self.planned.get(e.platoon_id, 0)
                     )
                 p.splits += 1
+                if e.time_s >= self.start_s - 1e-9:
+                    p.window_splits += 1
             elif v is None:
                 continue
             elif kind is EventKind.RED_LIGHT:

@@ -10,7 +10,12 @@ import pytest
 
 from platoon_sumo.events import EVENT_COLUMNS, WALL, Event, EventKind
 from platoon_sumo.metrics import summarise_trajectories
-from platoon_sumo.metrics.stats import PlatoonStats, RunStats, platoon_summary
+from platoon_sumo.metrics.stats import (
+    PlatoonStats,
+    RunStats,
+    peak_error_ratios,
+    platoon_summary,
+)
 
 DT = 0.1
 
@@ -159,6 +164,24 @@ def test_metrics_window_and_event_counts():
     (platoon,) = stats.platoon_summaries()
     assert platoon["splits"] == 2 and platoon["cut_ins"] == 1 and platoon["collisions"] == 2
     assert platoon["collisions_at_fault"] == 1
+
+
+def test_a_split_before_the_metrics_window_does_not_judge_the_platoon():
+    """Members that drifted apart during the warm-up and closed up again are judged on
+    the window only; the split still counts among the run's events."""
+    stats = summarise_trajectories(platoon_table(lost=()), planned={"p": 3}, start_s=2.0)
+    stats.add_events([Event(1.0, EventKind.SPLIT, "p.2", "p.1", "p")])
+    (p,) = stats.platoon_summaries()
+    assert p["splits"] == 1 and p["string_stability_verdict"] == "stable"
+    stats.add_events([Event(2.5, EventKind.SPLIT, "p.2", "p.1", "p")])
+    (p,) = stats.platoon_summaries()
+    assert p["splits"] == 2 and p["string_stability_verdict"] == "split"
+
+
+def test_peak_ratios_leave_out_the_remnants_of_a_damped_disturbance():
+    peaks = [2.0, 0.05, 0.4, 0.2]  # p.2 damped the disturbance to 2.5 % of p.1's
+    members = [{"member_index": i + 1, "max_abs_spacing_error_m": e} for i, e in enumerate(peaks)]
+    assert peak_error_ratios(members) == [pytest.approx(0.025), None, pytest.approx(0.5)]
 
 
 def test_offline_summary_reads_the_events_table():
