@@ -106,9 +106,9 @@ def _network_warnings(plan: RunPlan) -> None:
         print(f"warning: {message}", file=sys.stderr)
     if len(found) > SHOWN_WARNINGS:
         print(f"warning: ... and {len(found) - SHOWN_WARNINGS} more long phases", file=sys.stderr)
-    from platoon_sumo.sensing_checks import laser_range_warnings
+    from platoon_sumo.sensing_checks import laser_range_warnings, laser_view_warnings
 
-    for message in laser_range_warnings(plan):
+    for message in laser_range_warnings(plan) + laser_view_warnings(plan):
         print(f"warning: {message}", file=sys.stderr)
     invented: dict[str, list[str]] = {}  # message -> platoons whose route meets it
     for platoon in plan.platoons:

@@ -56,3 +56,50 @@ def test_a_policy_the_laser_covers_is_not_flagged(tmp_path, capfd, cruise, prese
     assert main(["validate", str(path)]) == 0
     _, err = capfd.readouterr()
     assert "laser" not in err
+
+
+def _turning_scenario(tmp_path: Path, half_fov_rad: float) -> Path:
+    """Laser followers through the urban grid's right and left turns, with a field of
+    view of +-`half_fov_rad`."""
+    doc = {
+        "simulation": {"step_s": 0.1, "end_s": 30, "seed": 1},
+        "network": {"net_file": str(REPO / "networks/urban_grid/urban_grid.net.xml")},
+        "platoons": [
+            {
+                "id": "turning",
+                "route": {"edges": ["left1A1", "A1B1", "B1B0", "B0A0", "A0left0"]},
+                "members": 3,
+                "follower": {
+                    "type": "laser_follower",
+                    "params": {"time_gap_s": 0.8},
+                    "sensor": {
+                        "preset": "utm30lx",
+                        "overrides": {
+                            "angle_min_rad": -half_fov_rad,
+                            "angle_max_rad": half_fov_rad,
+                        },
+                    },
+                },
+            }
+        ],
+    }
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_a_field_of_view_too_narrow_for_the_routes_turns_is_flagged(tmp_path, capfd):
+    path = _turning_scenario(tmp_path, half_fov_rad=0.2)  # +-11 deg, as the paper's scan
+    assert main(["validate", str(path)]) == 0
+    _, err = capfd.readouterr()
+    (line,) = [x for x in err.splitlines() if "field of view" in x]
+    assert line.startswith(f"warning: {path}: platoons[0] ('turning'): at ")
+    assert "outside their laser's +-11 deg field of view" in line
+    assert "platoons[0].follower.sensor" in line
+
+
+def test_the_default_scanner_sees_round_the_grid_turns(tmp_path, capfd):
+    path = _turning_scenario(tmp_path, half_fov_rad=2.356)  # the UTM-30LX's +-135 deg
+    assert main(["validate", str(path)]) == 0
+    _, err = capfd.readouterr()
+    assert "field of view" not in err
