@@ -248,6 +248,7 @@ def sumo_followers_run(protocol: str, attrs: dict[str, str], folder: Path) -> di
     # SUMO's models declare no spacing policy (IDM's equilibrium gap is not s0 + v T at
     # these speeds): no spacing error
     steps["spacing_error_m"] = np.nan
+    steps.to_csv(folder / "steps.csv", index=False)
     return {**metrics(steps, start), "collisions": collisions}
 
 
@@ -314,6 +315,60 @@ def run_all(work: Path) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: The followers the figures show, one panel each.
+FIGURE_FOLLOWERS = (
+    "laser_follower, noisy lidar (3 cm, 1 % dropouts)", "acc, h 1.2 s", "acc, h 0.5 s",
+    "cacc, h 0.5 s, delay 0 ms, loss 0%", "cacc, h 0.5 s, delay 300 ms, loss 0%",
+    "SUMO ACC, 1.2 s",
+)  # fmt: skip
+FIGURES = REPO / "docs" / "baselines"
+
+
+def figures(work: Path, out: Path) -> list[Path]:
+    """One PNG per protocol: every member's speed over time for `FIGURE_FOLLOWERS`, one
+    panel each (the leader black, the followers from dark to light down the platoon)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for protocol in PROTOCOLS:
+        doc = yaml.safe_load((REPO / "scenarios" / "protocols" / f"{protocol}.yaml").read_text())
+        start = float(doc["outputs"]["metrics_start_s"])
+        fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True, sharey=True)
+        for ax, follower in zip(axes.flat, FIGURE_FOLLOWERS, strict=True):
+            folder = work / protocol / _folder_name(follower)
+            source = folder / "out" / "trajectories.csv"
+            rows = pd.read_csv(source if source.exists() else folder / "steps.csv")
+            rows = rows[rows.time_s >= start - 10.0]
+            members = sorted(rows.member_index.unique())
+            colours = plt.cm.viridis(np.linspace(0.0, 0.85, max(len(members) - 1, 1)))
+            for k, (index, series) in enumerate(rows.groupby("member_index")):
+                colour = "black" if index == 0 else colours[k - 1]
+                ax.plot(
+                    series.time_s, series.speed_mps, color=colour, lw=1.4 if index == 0 else 1.0
+                )
+            ax.axvline(start, color="grey", ls=":", lw=0.8)
+            ax.set_title(follower, fontsize=9)
+            ax.grid(alpha=0.3)
+        for ax in axes[-1]:
+            ax.set_xlabel("time [s]")
+        for ax in axes[:, 0]:
+            ax.set_ylabel("speed [m/s]")
+        fig.suptitle(
+            f"{protocol}: every member's speed (leader black, followers dark to light down "
+            "the platoon; dotted: metrics start)"
+        )
+        fig.tight_layout()
+        path = out / f"{protocol}.png"
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        written.append(path)
+    return written
+
+
 def _folder_name(follower: str) -> str:
     return follower.replace(" ", "_").replace(",", "").replace("%", "pc")
 
@@ -346,7 +401,11 @@ def markdown(table: pd.DataFrame) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, help="folder for the runs (default: a temp dir)")
-    parser.add_argument("--doc", action="store_true", help=f"rewrite the table in {DOC}")
+    parser.add_argument(
+        "--doc",
+        action="store_true",
+        help=f"rewrite the table in {DOC} and its figures in {FIGURES}",
+    )
     args = parser.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="baselines_"))
     table = run_all(work)
@@ -357,7 +416,8 @@ def main() -> int:
         doc = DOC.read_text()
         head, rest = doc.split(BEGIN)
         _, tail = rest.split(END)
-        block = f"Command: `python tools/baselines.py --doc`\n\n{text}\n"
+        pictures = "\n".join(f"![{p.stem}](baselines/{p.name})" for p in figures(work, FIGURES))
+        block = f"Command: `python tools/baselines.py --doc`\n\n{text}\n\n{pictures}\n"
         DOC.write_text(f"{head}{BEGIN}\n{block}{END}{tail}")
     return 0
 
