@@ -255,6 +255,27 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study(args: argparse.Namespace) -> int:
+    from platoon_sumo.study import describe, load_study, run_study
+    from platoon_sumo.study.execute import ProgressLine
+
+    print(describe(load_study(args.study)), file=sys.stderr)
+    result = run_study(
+        args.study, args.out, args.workers, args.scheduler, None if args.quiet else ProgressLine()
+    )
+    table = result.table
+    failed = table[table.status != "complete"]
+    print(
+        f"{len(table)} runs ({len(result.ran)} run now, {len(table) - len(result.ran)} "
+        f"finished before), {len(failed)} failed; table: {result.folder / 'study.csv'}"
+    )
+    for row in failed.itertuples():
+        print(f"failed: run {row.run_id}: {row.reason}", file=sys.stderr)
+    for message in result.warnings:
+        print(f"warning: {message}", file=sys.stderr)
+    return 1 if len(failed) else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="platoon-sumo",
@@ -295,6 +316,20 @@ def build_parser() -> argparse.ArgumentParser:
     p_cmp.add_argument("results", nargs="+", help="results folders of finished runs")
     p_cmp.add_argument("--out", default="comparison", help="folder to write (default: comparison)")
     p_cmp.set_defaults(func=_cmd_compare)
+    p_std = sub.add_parser(
+        "study", help="run a parameter sweep with repetitions on Dask; one table out"
+    )
+    p_std.add_argument("study", help="study YAML (base scenario, parameters, metrics)")
+    p_std.add_argument("--out", help="study folder (default: results/<study name>); "
+                       "the same command again resumes it")  # fmt: skip
+    p_std.add_argument("--workers", type=int, help="local worker processes (default: the cores)")
+    p_std.add_argument(
+        "--scheduler",
+        help="address of a running Dask scheduler, e.g. tcp://host:8786 (the study folder "
+        "must be reachable by its workers)",
+    )
+    p_std.add_argument("--quiet", action="store_true", help="no progress line")
+    p_std.set_defaults(func=_cmd_study)
     return parser
 
 

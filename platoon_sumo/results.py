@@ -26,7 +26,7 @@ MANIFEST = "manifest.json"
 TOOL = "platoon-sumo"
 RUNNING, COMPLETE, FAILED, INTERRUPTED = "running", "complete", "failed", "interrupted"
 #: Kinds of folder we write.
-KINDS = ("run", "report", "comparison")
+KINDS = ("run", "report", "comparison", "study")
 
 
 class FolderError(PlatoonSumoError):
@@ -97,6 +97,48 @@ def claim(
         _prune(file.parent, stop=folder)
     _write_manifest(folder, kind, RUNNING, {})
     return OwnedFolder(folder, kind, foreign)
+
+
+@dataclass
+class StudyFolder:
+    """A study's folder: its runs' folders (each a run folder of its own) and the study's
+    tables; `finish` lists the study's own files in its manifest."""
+
+    path: Path
+    study_sha256: str
+
+    def finish(self, status: str) -> None:
+        files = {rel: _fingerprint(self.path / rel) for rel in _files(self.path) if rel != MANIFEST}
+        _write_manifest(self.path, "study", status, files, {"study_sha256": self.study_sha256})
+
+
+def open_study_folder(path: str | Path, study_sha256: str) -> StudyFolder:
+    """A new or empty folder for a study, or the folder of the same study run before
+    (nothing removed: its finished runs are kept and skipped); FolderError for a folder
+    that is not ours or holds something else."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise FolderError(f"{folder}: is a file, not a folder (choose another --out)")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FolderError(f"{folder}: cannot create the folder: {exc.strerror}") from None
+    manifest = read_manifest(folder)
+    if manifest is None and any(folder.iterdir()):
+        raise FolderError(
+            f"{folder}: the folder is not empty and was not written by {TOOL} "
+            f"(no {MANIFEST}); nothing was written (choose a new or empty folder with --out)"
+        )
+    if manifest is not None and manifest["kind"] != "study":
+        raise FolderError(f"{folder}: holds a {TOOL} {manifest['kind']}, not a study")
+    if manifest is not None and manifest.get("study_sha256") != study_sha256:
+        raise FolderError(
+            f"{folder}: holds the results of another study (or of this study file or its "
+            "scenario before they changed); nothing was written (choose another --out)"
+        )
+    files = manifest["files"] if manifest is not None else {}
+    _write_manifest(folder, "study", RUNNING, files, {"study_sha256": study_sha256})
+    return StudyFolder(folder, study_sha256)
 
 
 def read_manifest(folder: Path) -> dict[str, Any] | None:
@@ -210,13 +252,16 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def _write_manifest(folder: Path, kind: str, status: str, files: dict[str, Any]) -> None:
+def _write_manifest(
+    folder: Path, kind: str, status: str, files: dict[str, Any], extra: dict[str, Any] | None = None
+) -> None:
     data = {
         "tool": TOOL,
         "version": platoon_sumo.__version__,
         "kind": kind,
         "status": status,
         "files": files,
+        **(extra or {}),
     }
     tmp = folder / (MANIFEST + ".tmp")
     tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
