@@ -61,20 +61,7 @@ def claim(
     may stay beside ours (all files must go when it is None)."""
     assert kind in KINDS, kind
     folder = Path(path)
-    if folder.exists() and not folder.is_dir():
-        raise FolderError(f"{folder}: is a file, not a folder (choose another --out)")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise FolderError(f"{folder}: cannot create the folder: {exc.strerror}") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise FolderError(f"{folder}: the folder is not writable (choose another --out)")
-    manifest = read_manifest(folder)
-    if manifest is None and any(folder.iterdir()):
-        raise FolderError(
-            f"{folder}: the folder is not empty and was not written by {TOOL} "
-            f"(no {MANIFEST}); nothing was written (choose a new or empty folder with --out)"
-        )
+    manifest = _open(folder)
     ours: set[Path] = set()
     if manifest is not None:
         if manifest["kind"] != kind:
@@ -117,18 +104,7 @@ def open_study_folder(path: str | Path, study_sha256: str) -> StudyFolder:
     (nothing removed: its finished runs are kept and skipped); FolderError for a folder
     that is not ours or holds something else."""
     folder = Path(path)
-    if folder.exists() and not folder.is_dir():
-        raise FolderError(f"{folder}: is a file, not a folder (choose another --out)")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise FolderError(f"{folder}: cannot create the folder: {exc.strerror}") from None
-    manifest = read_manifest(folder)
-    if manifest is None and any(folder.iterdir()):
-        raise FolderError(
-            f"{folder}: the folder is not empty and was not written by {TOOL} "
-            f"(no {MANIFEST}); nothing was written (choose a new or empty folder with --out)"
-        )
+    manifest = _open(folder)
     if manifest is not None and manifest["kind"] != "study":
         raise FolderError(f"{folder}: holds a {TOOL} {manifest['kind']}, not a study")
     if manifest is not None and manifest.get("study_sha256") != study_sha256:
@@ -139,6 +115,26 @@ def open_study_folder(path: str | Path, study_sha256: str) -> StudyFolder:
     files = manifest["files"] if manifest is not None else {}
     _write_manifest(folder, "study", RUNNING, files, {"study_sha256": study_sha256})
     return StudyFolder(folder, study_sha256)
+
+
+def _open(folder: Path) -> dict[str, Any] | None:
+    """Create `folder` if needed and return our manifest in it (None for a new or empty
+    folder); FolderError for a file, an unwritable folder or one of someone else's."""
+    if folder.exists() and not folder.is_dir():
+        raise FolderError(f"{folder}: is a file, not a folder (choose another --out)")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FolderError(f"{folder}: cannot create the folder: {exc.strerror}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise FolderError(f"{folder}: the folder is not writable (choose another --out)")
+    manifest = read_manifest(folder)
+    if manifest is None and any(folder.iterdir()):
+        raise FolderError(
+            f"{folder}: the folder is not empty and was not written by {TOOL} "
+            f"(no {MANIFEST}); nothing was written (choose a new or empty folder with --out)"
+        )
+    return manifest
 
 
 def read_manifest(folder: Path) -> dict[str, Any] | None:
