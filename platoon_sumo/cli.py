@@ -276,6 +276,13 @@ def _cmd_study(args: argparse.Namespace) -> int:
     return 1 if len(failed) else 0
 
 
+def _cmd_study_report(args: argparse.Namespace) -> int:
+    from platoon_sumo.study.report import write_study_report
+
+    print(f"study report written to {write_study_report(args.folder, args.out)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="platoon-sumo",
@@ -330,6 +337,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p_std.add_argument("--quiet", action="store_true", help="no progress line")
     p_std.set_defaults(func=_cmd_study)
+    p_srep = sub.add_parser(
+        "study-report", help="figures of each metric against each parameter of a study"
+    )
+    p_srep.add_argument("folder", help="a study folder (platoon-sumo study --out)")
+    p_srep.add_argument("--out", help="folder for the report (default: FOLDER/report)")
+    p_srep.set_defaults(func=_cmd_study_report)
     return parser
 
 

@@ -69,7 +69,11 @@ def expand(study: Study) -> list[StudyRun]:
 def scenario_for(study: Study, run: StudyRun) -> dict[str, Any]:
     """The base scenario with the run's values, seed and end time, paths absolute."""
     data = copy.deepcopy(dict(study.scenario_data))
+    settings: list[tuple[str, Any]] = []
     for key, value in run.values.items():
+        group = study.groups.get(key)
+        settings.extend(group[value].items() if group is not None else [(key, value)])
+    for key, value in settings:
         _set(data, parse_key_path(key, str(study.path)), value, key, study, run)
     simulation = dict(data.get("simulation") or {})
     simulation["seed"] = run.seed

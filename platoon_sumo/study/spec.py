@@ -40,7 +40,9 @@ class StudyConfig:
     parameters: Mapping[str, Any] = field(default_factory=dict)
     """Key path into the scenario (`platoons[0].follower.params.time_gap_s`,
     `platoons[*].leader.params.cruise_speed_mps`, `traffic.scale`) -> a list of values,
-    or `{from: a, to: b, step: c}` (both ends included)."""
+    or `{from: a, to: b, step: c}` (both ends included); or a name -> named levels,
+    each a mapping of key paths to values set together (`follower: {paper: {...},
+    laser: {...}}`), the level's name in the table."""
     combine: Literal["grid", "zip"] = "grid"
     """`grid`: every combination; `zip`: the i-th values of every list together."""
     repetitions: int = bounded(1, ge=1, le=10_000)
@@ -93,7 +95,9 @@ class Study:
     scenario_path: Path
     scenario_data: Mapping[str, Any]
     values: Mapping[str, tuple[Any, ...]]
-    """Each parameter's values, in file order."""
+    """Each parameter's values, in file order (a group's: its level names)."""
+    groups: Mapping[str, Mapping[str, Mapping[str, Any]]] = field(default_factory=dict)
+    """Named groups: {name: {level: {key path: value}}}, several keys set together."""
 
     @property
     def name(self) -> str:
@@ -120,9 +124,18 @@ def load_study(path: str | Path) -> Study:
     if not scenario_path.is_file():
         raise ScenarioError(shown, "scenario", f"scenario file not found: {scenario_path}")
     scenario_data = _yaml(scenario_path.read_text(encoding="utf-8"), str(scenario_path))
-    values = {k: _values(v, shown, f"parameters.{k}") for k, v in config.parameters.items()}
+    groups = {
+        k: _group(v, shown, f"parameters.{k}")
+        for k, v in config.parameters.items()
+        if isinstance(v, Mapping) and set(v) != {"from", "to", "step"}
+    }
+    values = {
+        k: tuple(groups[k]) if k in groups else _values(v, shown, f"parameters.{k}")
+        for k, v in config.parameters.items()
+    }
     for key in values:
-        parse_key_path(key, shown)
+        if key not in groups:
+            parse_key_path(key, shown)
     if config.combine == "zip" and len({len(v) for v in values.values()}) > 1:
         lengths = ", ".join(f"{k}: {len(v)}" for k, v in values.items())
         raise ScenarioError(shown, "parameters", f"zip needs lists of one length ({lengths})",
@@ -134,7 +147,7 @@ def load_study(path: str | Path) -> Study:
     )
     if runs > MAX_RUNS:
         raise ScenarioError(shown, "parameters", f"{runs} runs; a study is limited to {MAX_RUNS}")
-    return Study(config, p.resolve(), text, scenario_path, scenario_data, values)
+    return Study(config, p.resolve(), text, scenario_path, scenario_data, values, groups)
 
 
 def _yaml(text: str, shown: str) -> Mapping[str, Any]:
@@ -172,6 +185,22 @@ def _values(spec: Any, file: str, key: str) -> tuple[Any, ...]:
             start + i * step if integral else round(start + i * step, 12) for i in range(count)
         )
     raise ScenarioError(file, key, "expected a list of values or {from, to, step}")
+
+
+def _group(spec: Mapping[str, Any], file: str, key: str) -> dict[str, dict[str, Any]]:
+    """A named group: {level: {key path: value}} (a range is {from, to, step})."""
+    if not spec:
+        raise ScenarioError(file, key, "a group needs at least one level")
+    levels = {}
+    for level, settings in spec.items():
+        where = f"{key}.{level}"
+        if not isinstance(settings, Mapping) or not settings:
+            raise ScenarioError(file, where, "a level is a mapping of key paths to values",
+                                "or write a range as {from: a, to: b, step: c}")  # fmt: skip
+        for path in settings:
+            parse_key_path(str(path), file)
+        levels[str(level)] = dict(settings)
+    return levels
 
 
 _PART = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)((?:\[(?:\d+|\*)\])*)$")

@@ -86,6 +86,14 @@ def test_a_misspelt_metric_is_named_with_a_suggestion(two_workers):
     assert "summary.json has no 'overall.min_gap'" in message and "'min_gap_m'" in message
 
 
+def test_study_report_draws_each_metric_against_each_parameter(two_workers, tmp_path):
+    assert main(["study-report", str(two_workers.folder), "--out", str(tmp_path / "r")]) == 0
+    pngs = sorted((tmp_path / "r").glob("*.png"))
+    assert len(pngs) == len(METRICS) * len(PARAMETERS)
+    text = (tmp_path / "r" / "report.md").read_text()
+    assert "8 runs, 8 complete" in text and all(f"]({p.name})" in text for p in pngs)
+
+
 def test_same_study_same_table_with_one_worker(two_workers, tmp_path):
     again = run_study(write_study(tmp_path), tmp_path / "out", workers=1)
     columns = [c for c in two_workers.table.columns if c != "wall_s"]
