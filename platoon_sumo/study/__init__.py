@@ -83,12 +83,8 @@ def run_study(
         if importlib.util.find_spec("pyarrow") is not None:  # the parquet extra
             table.to_parquet(folder / "study.parquet", index=False)
         summary.to_csv(folder / "aggregate.csv", index=False)
-        finished = table.run_id[table.status == COMPLETE]
-        warnings = (
-            unknown_metrics(run_dirs[finished.iloc[0]], study.config.metrics)
-            if len(finished)
-            else []
-        )
+        finished = [run_dirs[rid] for rid in table.run_id[table.status == COMPLETE]]
+        warnings = unknown_metrics(finished, study.config.metrics) if finished else []
         status = COMPLETE
         return StudyResult(folder, table, summary, tuple(todo), tuple(warnings))
     finally:

@@ -32,38 +32,50 @@ def run_metrics(run_dir: Path, metrics: Sequence[str]) -> dict[str, Any]:
             out[text] = _dotted(summary, metric.key)
             continue
         if metric.source not in tables:
-            path = run_dir / f"{metric.source}.csv"
-            tables[metric.source] = pd.read_csv(path) if path.stat().st_size else pd.DataFrame()
+            tables[metric.source] = _read_table(run_dir / f"{metric.source}.csv")
         out[text] = _reduce(tables[metric.source], metric)
     return out
 
 
-def unknown_metrics(run_dir: Path, metrics: Sequence[str]) -> list[str]:
-    """Messages for metrics a finished run's files do not have (a misspelt key or
-    column), with a did-you-mean from what they do have."""
-    summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
+def unknown_metrics(run_dirs: Sequence[Path], metrics: Sequence[str]) -> list[str]:
+    """Messages for metrics no finished run's files have (a misspelt key or column),
+    with a did-you-mean from what the runs do have. A table without rows (a run with no
+    platoon vehicle) has no columns: another run must show the metric."""
+    summaries = [json.loads((d / "summary.json").read_text(encoding="utf-8")) for d in run_dirs]
     out = []
     for text in metrics:
         metric = parse_metric(text, "metrics")
-        if metric.source == "summary":
-            *parents, last = metric.key.split(".")
-            node: Any = summary
-            for part in parents:
-                node = node.get(part) if isinstance(node, Mapping) else None
-            names = list(node) if isinstance(node, Mapping) else []
-            if last in names:
-                continue
-            where = "summary.json"
+        names: set[str] = set()
+        for run_dir, summary in zip(run_dirs, summaries, strict=True):
+            if metric.source == "summary":
+                *parents, last = metric.key.split(".")
+                node: Any = summary
+                for part in parents:
+                    node = node.get(part) if isinstance(node, Mapping) else None
+                have = set(node) if isinstance(node, Mapping) else set()
+                wanted = last
+            else:
+                have = set(_read_table(run_dir / f"{metric.source}.csv").columns)
+                wanted = metric.key
+            if wanted in have:
+                break
+            names |= have
         else:
-            names = list(pd.read_csv(run_dir / f"{metric.source}.csv", nrows=0).columns)
-            if metric.key in names:
-                continue
-            where = f"{metric.source}.csv"
-        hint = did_you_mean(metric.key.split(".")[-1], names)
-        out.append(
-            f"metric '{text}': {where} has no '{metric.key}'" + (f" ({hint})" if hint else "")
-        )
+            where = "summary.json" if metric.source == "summary" else f"{metric.source}.csv"
+            hint = did_you_mean(metric.key.split(".")[-1], sorted(names))
+            out.append(
+                f"metric '{text}': no run's {where} has '{metric.key}'"
+                + (f" ({hint})" if hint else "")
+            )
     return out
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    """A run's summary table; empty (no columns) when the run had no platoon vehicle."""
+    try:
+        return pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        return pd.DataFrame()
 
 
 def _dotted(data: Any, key: str) -> Any:

@@ -78,12 +78,13 @@ def test_tables_written_for_pandas(two_workers):
 
 
 def test_a_misspelt_metric_is_named_with_a_suggestion(two_workers):
-    run_dir = two_workers.folder / "runs" / two_workers.table.run_id.iloc[0]
-    assert unknown_metrics(run_dir, METRICS) == []
-    (message,) = unknown_metrics(run_dir, ["vehicles.min_gapp_m:min"])
-    assert "vehicles.csv has no 'min_gapp_m'" in message and "did you mean 'min_gap_m'" in message
-    (message,) = unknown_metrics(run_dir, ["summary.overall.min_gap"])
-    assert "summary.json has no 'overall.min_gap'" in message and "'min_gap_m'" in message
+    run_dirs = [two_workers.folder / "runs" / rid for rid in two_workers.table.run_id]
+    assert unknown_metrics(run_dirs, METRICS) == []
+    (message,) = unknown_metrics(run_dirs, ["vehicles.min_gapp_m:min"])
+    assert "no run's vehicles.csv has 'min_gapp_m'" in message
+    assert "did you mean 'min_gap_m'" in message
+    (message,) = unknown_metrics(run_dirs, ["summary.overall.min_gap"])
+    assert "no run's summary.json has 'overall.min_gap'" in message and "'min_gap_m'" in message
 
 
 def test_study_report_draws_each_metric_against_each_parameter(two_workers, tmp_path):
