@@ -369,10 +369,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # a bug of ours: one line, the traceback on request
         if os.environ.get(TRACEBACK_ENV):
             raise
+        where = "the run's FAILED.txt has it; " if args.command == "run" else ""
         print(
             f"error: internal error of platoon-sumo {platoon_sumo.__version__}: "
-            f"{type(exc).__name__}: {exc} (a run's FAILED.txt has the traceback; "
-            f"{TRACEBACK_ENV}=1 shows it here; please report it)",
+            f"{type(exc).__name__}: {exc} ({where}{TRACEBACK_ENV}=1 shows the traceback "
+            "here; please report it)",
             file=sys.stderr,
         )
         return 1
