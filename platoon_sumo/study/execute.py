@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-COMPLETE, FAILED = "complete", "failed"
+from platoon_sumo.results import COMPLETE, FAILED
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,7 @@ def scenario_for(study: Study, run: StudyRun) -> dict[str, Any]:
         group = study.groups.get(key)
         settings.extend(group[value].items() if group is not None else [(key, value)])
     for key, value in settings:
-        _set(data, parse_key_path(key, str(study.path)), value, key, study, run)
+        _set(data, parse_key_path(key, str(study.path)), value, key, str(study.path))
     simulation = dict(data.get("simulation") or {})
     simulation["seed"] = run.seed
     if study.config.end_s is not None:
@@ -129,18 +129,15 @@ def _absolute(value: str, base: Path) -> str:
     return str(p if p.is_absolute() else (base / p).resolve())
 
 
-def _set(
-    data: Any, path: list[str | int | None], value: Any, key: str, study: Study, run: StudyRun
-) -> None:
+def _set(data: Any, path: list[str | int | None], value: Any, key: str, file: str) -> None:
     """Set `value` at `path` (None: every element of a list), creating mappings on the
     way; an index beyond a list, or a step into a value, is an error naming the key."""
-    file = str(study.path)
     *head, last = path
     nodes = [data]
     for step in head:
         nxt = []
         for node in nodes:
-            nxt.extend(_children(node, step, key, file, create=True))
+            nxt.extend(_children(node, step, key, file))
         nodes = nxt
     for node in nodes:
         if last is None:
@@ -158,7 +155,7 @@ def _set(
             node[last] = copy.deepcopy(value)
 
 
-def _children(node: Any, step: str | int | None, key: str, file: str, create: bool) -> list[Any]:
+def _children(node: Any, step: str | int | None, key: str, file: str) -> list[Any]:
     where = f"parameters.{key}"
     if step is None:
         if not isinstance(node, list):
@@ -170,6 +167,6 @@ def _children(node: Any, step: str | int | None, key: str, file: str, create: bo
         return [node[step]]
     if not isinstance(node, dict):
         raise ScenarioError(file, where, f"'{step}' inside a value")
-    if node.get(step) is None and create:
+    if node.get(step) is None:
         node[step] = {}
     return [node[step]]
