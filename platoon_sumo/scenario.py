@@ -360,9 +360,10 @@ class VehicleConfig:
     0.1), as for its human drivers, so members' caps differ; kept as the default until
     lane-actuated followers hold their lane behind their predecessor (issue 11: on the
     A10 the exact factor lets SUMO's strategic lane change split a follower)."""
-    actuator_lag_s: float = bounded(0.0, ge=0, le=10)
+    actuator_lag_s: float | None = bounded(None, ge=0, le=10)
     """First-order lag between the commanded and the achieved acceleration [s] (engine
-    and brakes; Plexe's engine lag, 0.5 s by default there); 0: none."""
+    and brakes; Plexe's engine lag, 0.5 s by default there); 0: none. null: the vehicle
+    model's default, none for both models for now (cars: docs/baselines.md, Open)."""
     max_jerk_mps3: float | None = bounded(None, gt=0, le=10_000)
     """Largest change of the achieved acceleration per second [m/s³]; null: unbounded."""
 
@@ -398,7 +399,11 @@ class VehicleConfig:
         return self.length_m - max(self.length_m - self.wheelbase_m, 0.0) / 2
 
     def powertrain(self) -> Powertrain:
-        return Powertrain(self.actuator_lag_s, self.max_jerk_mps3)
+        """The lag and jerk bound in effect: `actuator_lag_s`, or the model's default."""
+        lag = self.actuator_lag_s
+        if lag is None:
+            lag = VEHICLE_MODELS.get(self.model).default_actuator_lag_s
+        return Powertrain(lag, self.max_jerk_mps3)
 
     def limits(self) -> MotionLimits:
         return MotionLimits(

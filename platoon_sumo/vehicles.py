@@ -118,6 +118,9 @@ class VehicleModel(Protocol):
     """Kinematics plug-in: one step for all vehicles of a kind; stateless and vectorised."""
 
     name: ClassVar[str]
+    default_actuator_lag_s: ClassVar[float]
+    """The powertrain lag a vehicle of this kind gets unless its scenario sets
+    ``vehicle.actuator_lag_s``."""
 
     def step(
         self,
@@ -136,9 +139,12 @@ VEHICLE_MODELS: Registry[type[VehicleModel]] = Registry("vehicle model")
 
 @VEHICLE_MODELS.register("unicycle")
 class Unicycle:
-    """Differential drive: any yaw rate up to the limit, even at standstill (turns on the spot)."""
+    """Differential drive: any yaw rate up to the limit, even at standstill (turns on the spot).
+    No actuator lag by default: the paper's robots reach a commanded speed as fast as their
+    acceleration limits allow."""
 
     name: ClassVar[str] = "unicycle"
+    default_actuator_lag_s: ClassVar[float] = 0.0
 
     def step(
         self,
@@ -155,6 +161,7 @@ class Unicycle:
 @VEHICLE_MODELS.register("bicycle")
 class Bicycle:
     """Kinematic bicycle about the rear axle: yaw rate = v tan(delta) / L, |delta| <= max_steer.
+    No actuator lag by default yet (docs/baselines.md, Open).
 
     The commanded yaw rate maps to the steering angle delta = atan(omega L / v); clipping
     delta to max_steer and mapping back is the same as clipping omega to
@@ -163,6 +170,9 @@ class Bicycle:
     """
 
     name: ClassVar[str] = "bicycle"
+    # A car's lag (0.1 s: Ploeg et al.'s test vehicles) fails the A10 acceptance test at
+    # its seed; it waits for issue 11 (docs/baselines.md, Open).
+    default_actuator_lag_s: ClassVar[float] = 0.0
 
     def step(
         self,

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from platoon_sumo.geometry import wrap_angle
 from platoon_sumo.registry import Registry
+from platoon_sumo.scenario import VehicleConfig, load_scenario
 from platoon_sumo.vehicles import (
     VEHICLE_MODELS,
     Bicycle,
@@ -23,6 +24,7 @@ from platoon_sumo.vehicles import (
     integrate_arc,
     powertrain_speed,
 )
+from tests.helpers import REPO
 
 ROBOT = MotionLimits(
     max_speed_mps=0.5, max_accel_mps2=0.5, max_decel_mps2=1.0, max_yaw_rate_radps=1.5
@@ -381,3 +383,21 @@ def test_powertrain_stays_within_limits(
     within_limits = -CAR.max_decel_mps2 <= accel <= CAR.max_accel_mps2
     if jerk is not None and new > 0.0 and within_limits:
         assert abs(achieved - accel) <= jerk * dt + 1e-9
+
+
+def test_the_vehicle_model_gives_the_default_lag_and_a_scenario_value_wins() -> None:
+    for name in VEHICLE_MODELS:
+        model = VEHICLE_MODELS.get(name)
+        assert model.default_actuator_lag_s >= 0.0
+        assert VehicleConfig(model=name).powertrain() == Powertrain(model.default_actuator_lag_s)
+        assert VehicleConfig(model=name, actuator_lag_s=0.3).powertrain() == Powertrain(0.3)
+        assert VehicleConfig(model=name, actuator_lag_s=0.0).powertrain().is_ideal
+    assert Unicycle.default_actuator_lag_s == 0.0  # the paper's robots: no lag
+
+
+@pytest.mark.parametrize(
+    ("scenario", "lag_s"), [("paper_world.yaml", 0.0), ("protocols/sinusoid.yaml", 0.1)]
+)
+def test_shipped_scenarios_powertrains(scenario: str, lag_s: float) -> None:
+    (platoon, *_) = load_scenario(REPO / "scenarios" / scenario).scenario.platoons
+    assert platoon.vehicle.powertrain() == Powertrain(lag_s)
