@@ -43,7 +43,7 @@ from platoon_sumo.sumo.inputs import InputFileError, check_route_file, check_xml
 from platoon_sumo.sumo.network import Network, RouteError
 from platoon_sumo.supervisor import SupervisorConfig
 from platoon_sumo.vehicles import VEHICLE_MODELS, MotionLimits, Powertrain, VehicleModel
-from platoon_sumo.yaml_input import MAX_BYTES, YamlLimitError, load_bounded
+from platoon_sumo.yaml_input import read_mapping
 
 VEHICLE_CLASSES = (
     "ignoring", "private", "emergency", "authority", "army", "vip", "pedestrian", "passenger",
@@ -635,32 +635,7 @@ def load_scenario(path: str | Path) -> ScenarioSource:
     """Read and shape-check a scenario file (no network access yet)."""
     p = Path(path)
     shown = str(path)
-    if not p.is_file():
-        raise ScenarioError(shown, "", "scenario file not found", "check the path")
-    size = p.stat().st_size
-    if size > MAX_BYTES:
-        raise ScenarioError(
-            shown, "", f"file is {size / 2**20:.1f} MB; scenario files are limited to "
-            f"{MAX_BYTES // 2**20} MB", "put large data in route or additional files",
-        )  # fmt: skip
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(
-            shown, "", f"not UTF-8 text ({exc.reason} at byte {exc.start})"
-        ) from None
-    try:
-        data = load_bounded(text)
-    except YamlLimitError as exc:
-        raise ScenarioError(shown, exc.where, exc.message) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else ""
-        raise ScenarioError(
-            shown, where, f"not valid YAML: {getattr(exc, 'problem', exc)}"
-        ) from None
-    if not isinstance(data, Mapping):
-        raise ScenarioError(shown, "", "expected a mapping of sections at the top level")
+    text, data = read_mapping(p, shown)
     if "network" not in data:
         raise ScenarioError(shown, "network", "required key is missing")
     default_name = re.sub(r"[^A-Za-z0-9_.-]", "_", p.stem).strip("_.-")[:64] or "scenario"

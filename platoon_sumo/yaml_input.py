@@ -11,17 +11,22 @@ any data:
   node of the anchored subtree each time an alias repeats it;
 - a key given twice in one mapping (merge keys `<<:` may still be overridden).
 
-The file size is the caller's to check (`MAX_BYTES`), before reading the file.
+`read_mapping` reads a file users give us with these limits, its size (`MAX_BYTES`)
+and encoding checked first, into a mapping, or raises one `ScenarioError` naming it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import yaml
 from yaml.composer import Composer
 from yaml.events import AliasEvent
 from yaml.nodes import MappingNode, Node, ScalarNode
+
+from platoon_sumo.errors import ScenarioError
 
 #: Largest scenario file read [bytes].
 MAX_BYTES = 5 * 1024 * 1024
@@ -128,3 +133,36 @@ def load_bounded(text: str) -> Any:
         return loader.get_single_data()
     finally:
         loader.dispose()
+
+
+def read_mapping(path: Path, shown: str, what: str = "scenario") -> tuple[str, Mapping[str, Any]]:
+    """(text, the YAML mapping) of `path`, a `what` file (`shown` names it in errors),
+    read with the limits above; ScenarioError for a missing, large, non-UTF-8, invalid or
+    non-mapping file."""
+    if not path.is_file():
+        raise ScenarioError(shown, "", f"{what} file not found", "check the path")
+    size = path.stat().st_size
+    if size > MAX_BYTES:
+        raise ScenarioError(
+            shown, "", f"file is {size / 2**20:.1f} MB; {what} files are limited to "
+            f"{MAX_BYTES // 2**20} MB", "put large data in route or additional files",
+        )  # fmt: skip
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            shown, "", f"not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from None
+    try:
+        data = load_bounded(text)
+    except YamlLimitError as exc:
+        raise ScenarioError(shown, exc.where, exc.message) from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else ""
+        raise ScenarioError(
+            shown, where, f"not valid YAML: {getattr(exc, 'problem', exc)}"
+        ) from None
+    if not isinstance(data, Mapping):
+        raise ScenarioError(shown, "", "expected a mapping of sections at the top level")
+    return text, data

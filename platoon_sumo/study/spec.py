@@ -11,11 +11,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from platoon_sumo.config_loader import bounded, load_dataclass, require, require_choice
 from platoon_sumo.errors import ScenarioError, did_you_mean
-from platoon_sumo.yaml_input import YamlLimitError, load_bounded
+from platoon_sumo.yaml_input import read_mapping
 
 #: Tables a metric can be read from: summary.json (dotted keys), and the per-platoon and
 #: per-vehicle tables (a column, reduced over their rows).
@@ -115,15 +113,12 @@ def load_study(path: str | Path) -> Study:
     """Read and check a study file and its base scenario's YAML (not yet each run)."""
     p = Path(path)
     shown = str(path)
-    if not p.is_file():
-        raise ScenarioError(shown, "", "study file not found", "check the path")
-    text = p.read_text(encoding="utf-8")
-    data = _yaml(text, shown)
+    text, data = read_mapping(p, shown, "study")
     config = load_dataclass(StudyConfig, data, shown)
     scenario_path = (p.parent / config.scenario).resolve()
     if not scenario_path.is_file():
         raise ScenarioError(shown, "scenario", f"scenario file not found: {scenario_path}")
-    scenario_data = _yaml(scenario_path.read_text(encoding="utf-8"), str(scenario_path))
+    _, scenario_data = read_mapping(scenario_path, str(scenario_path))
     groups = {
         k: _group(v, shown, f"parameters.{k}")
         for k, v in config.parameters.items()
@@ -148,18 +143,6 @@ def load_study(path: str | Path) -> Study:
     if runs > MAX_RUNS:
         raise ScenarioError(shown, "parameters", f"{runs} runs; a study is limited to {MAX_RUNS}")
     return Study(config, p.resolve(), text, scenario_path, scenario_data, values, groups)
-
-
-def _yaml(text: str, shown: str) -> Mapping[str, Any]:
-    try:
-        data = load_bounded(text)
-    except YamlLimitError as exc:
-        raise ScenarioError(shown, exc.where, exc.message) from None
-    except yaml.YAMLError as exc:
-        raise ScenarioError(shown, "", f"not valid YAML: {getattr(exc, 'problem', exc)}") from None
-    if not isinstance(data, Mapping):
-        raise ScenarioError(shown, "", "expected a mapping at the top level")
-    return data
 
 
 def _values(spec: Any, file: str, key: str) -> tuple[Any, ...]:

@@ -99,3 +99,15 @@ def test_shipped_studies_validate(path, tmp_path):
     study = load_study(path)
     runs = expand(study)
     assert len(write_scenarios(study, runs, tmp_path)) == len(runs) > 1
+
+
+def test_a_study_file_is_read_with_the_scenario_files_limits(tmp_path):
+    with pytest.raises(ScenarioError, match="study file not found"):
+        load_study(tmp_path / "none.yaml")
+    bad = tmp_path / "bad.yaml"
+    bad.write_bytes(b"scenario: \xff\n")
+    with pytest.raises(ScenarioError, match="not UTF-8"):
+        load_study(bad)
+    bad.write_text("a: &x [1]\na: *x\n")
+    with pytest.raises(ScenarioError, match="given twice|twice"):
+        load_study(bad)
