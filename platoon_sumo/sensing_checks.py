@@ -9,25 +9,23 @@ would say why, so the plan is checked before it starts."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 
 from platoon_sumo.control.base import GapPolicy
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
+from platoon_sumo.sensors.laser import LaserConfig
 
 
 def laser_range_warnings(plan: RunPlan) -> list[str]:
     """One message per platoon whose laser followers' desired gap, at the fastest speed
     their vehicle, leader and route allow, lies beyond their laser's range."""
     out = []
-    for i, platoon in enumerate(plan.platoons):
-        follower = next((m for m in platoon.members if m.index > 0), None)
-        if follower is None or follower.laser is None:
+    for i, platoon, laser, policy in _laser_followers(plan):
+        if policy.time_gap_s <= 0.0:
             continue
-        policy = _gap_policy(follower)
-        if policy is None or policy.time_gap_s <= 0.0:
-            continue
-        range_m = follower.laser.range_max_m
+        range_m = laser.range_max_m
         fastest = _fastest_mps(plan, platoon)
         if policy.desired_m(fastest) <= range_m:
             continue
@@ -56,14 +54,7 @@ def laser_view_warnings(plan: RunPlan) -> list[str]:
     the front bumper to the point that far ahead along the route, against the route's
     heading, at the worst place of the route."""
     out = []
-    for i, platoon in enumerate(plan.platoons):
-        follower = next((m for m in platoon.members if m.index > 0), None)
-        if follower is None or follower.laser is None:
-            continue
-        policy = _gap_policy(follower)
-        if policy is None:
-            continue
-        laser = follower.laser
+    for i, platoon, laser, policy in _laser_followers(plan):
         half_fov = min(-laser.angle_min_rad, laser.angle_max_rad)
         if half_fov >= math.pi / 2:
             continue  # a predecessor ahead along any road stays in a 180 deg view
@@ -102,6 +93,19 @@ def laser_view_warnings(plan: RunPlan) -> list[str]:
             "wider field of view or a shorter gap"
         )
     return out
+
+
+def _laser_followers(plan: RunPlan) -> Iterator[tuple[int, PlatoonPlan, LaserConfig, GapPolicy]]:
+    """(index, platoon, laser, spacing policy) of each platoon whose followers have a
+    laser and report a spacing policy (the first follower stands for all: they share
+    their role's configuration)."""
+    for i, platoon in enumerate(plan.platoons):
+        follower = next((m for m in platoon.members if m.index > 0), None)
+        if follower is None or follower.laser is None:
+            continue
+        policy = _gap_policy(follower)
+        if policy is not None:
+            yield i, platoon, follower.laser, policy
 
 
 def _gap_policy(member: MemberPlan) -> GapPolicy | None:
