@@ -124,13 +124,17 @@ def _network_warnings(plan: RunPlan) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from platoon_sumo.live_view import LiveViewOptions
     from platoon_sumo.runner import load_plan, run
 
     path = Path(args.scenario) if args.scenario else default_scenario()
     plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
     _network_warnings(plan)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
-    result = run(plan, out_dir=args.out, hooks=hooks, force=args.force)
+    live_view = None
+    if args.gui:
+        live_view = LiveViewOptions(args.gui_vehicle, args.gui_rays, delay_ms=args.gui_delay)
+    result = run(plan, out_dir=args.out, hooks=hooks, force=args.force, live_view=live_view)
     s = result.summary
     depart = {p.config.id: p.config.depart_s for p in plan.platoons}
     for pid in s.get("platoons_not_inserted", []):
@@ -304,6 +308,27 @@ def build_parser() -> argparse.ArgumentParser:
     p_run.add_argument(
         "--no-platoons", action="store_true",
         help="run the same traffic without platoons (baseline for network effects)",
+    )  # fmt: skip
+    gui = p_run.add_argument_group(
+        "live view", "watch the run in sumo-gui (same results as without; needs a display)"
+    )
+    gui.add_argument(
+        "--gui", action="store_true",
+        help="run in sumo-gui: platoons coloured by platoon (leader ringed), laser rays and "
+        "hits, the followed vehicle's predecessor outlined in magenta",
+    )  # fmt: skip
+    gui.add_argument(
+        "--gui-vehicle", metavar="ID",
+        help="vehicle the view follows and whose rays are drawn (default: the first "
+        "follower with a laser)",
+    )  # fmt: skip
+    gui.add_argument(
+        "--gui-rays", choices=("chosen", "all", "none"), default="chosen",
+        help="whose laser rays to draw (default: the followed vehicle's)",
+    )  # fmt: skip
+    gui.add_argument(
+        "--gui-delay", type=float, default=100.0, metavar="MS",
+        help="pause between steps [ms] (default 100; sumo-gui's toolbar changes it live)",
     )  # fmt: skip
     p_run.set_defaults(func=_cmd_run)
     p_scan = sub.add_parser("scan", help="run a scenario to a time and draw a laser scan as PNG")

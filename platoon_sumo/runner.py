@@ -26,6 +26,7 @@ from platoon_sumo.config_loader import FieldError
 from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import ScenarioError
 from platoon_sumo.events import WALL, Event, EventKind, count, of_kind
+from platoon_sumo.live_view import LiveView, LiveViewOptions
 from platoon_sumo.loop.context import StepHook
 from platoon_sumo.metrics import RunStats
 from platoon_sumo.metrics.sumo_outputs import (
@@ -101,11 +102,13 @@ def run(
     out_dir: str | Path | None = None,
     hooks: Sequence[StepHook] = (),
     force: bool = False,
+    live_view: LiveViewOptions | None = None,
 ) -> RunResult:
     """Run `plan` into a results folder that is new, empty or holds our earlier results
     (`results.claim`; `force` replaces earlier results that were edited or never
     finished). A failed or interrupted run keeps what it wrote, with FAILED.txt (the
-    reason and its traceback) and its manifest saying so."""
+    reason and its traceback) and its manifest saying so. `live_view` runs it in
+    sumo-gui with the live view drawn (the same results, slower)."""
     sc = plan.scenario
     directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name).resolve()
     folder = claim(directory, "run", OUTPUT_NAMES, force)
@@ -113,7 +116,7 @@ def run(
         (directory / "scenario.yaml").write_text(
             plan.source.reproducible_yaml(sc.simulation), encoding="utf-8"
         )
-        result = _run(plan, directory, hooks)
+        result = _run(plan, directory, hooks, live_view)
     except BaseException as exc:
         reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         trace = "".join(traceback.format_exception(exc))
@@ -126,7 +129,9 @@ def run(
     return result
 
 
-def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult:
+def _run(
+    plan: RunPlan, directory: Path, hooks: Sequence[StepHook], live_view: LiveViewOptions | None
+) -> RunResult:
     sc = plan.scenario
     generated = write_traffic_inputs(plan, directory / "inputs")
     out = sc.outputs
@@ -147,6 +152,8 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         tripinfo_file=str(directory / "tripinfo.csv") if sc.outputs.tripinfo else None,
         statistics_file=str(directory / "sumo_statistics.xml"),
         extra_args=sumo_output_args(directory) if out.sumo_outputs else (),
+        gui=live_view is not None,
+        gui_delay_ms=live_view.delay_ms if live_view is not None else 0.0,
     )
     stats = RunStats(
         {p.config.id: len(p.members) for p in plan.platoons}, out.metrics_start_s,
@@ -163,6 +170,8 @@ def _run(plan: RunPlan, directory: Path, hooks: Sequence[StepHook]) -> RunResult
         snapshot = ScanSnapshot(out.scan_snapshot_s)
         all_hooks.append(snapshot)
     all_hooks.extend(hooks)
+    if live_view is not None:
+        all_hooks.append(LiveView(live_view))
     walls = read_wall_segments(plan.additional_files)
     if sc.network.kerbs:
         walls = np.vstack([walls, plan.network.kerb_segments(sc.network.kerb_margin_m)])

@@ -1,4 +1,5 @@
-"""The only module that talks to SUMO (through libsumo).
+"""The only module that talks to SUMO (through libsumo, or TraCI to sumo-gui for the
+live view: the same calls, so a run is the same either way).
 
 State is read once per step, in batch, into numpy arrays; platoon vehicles are pushed
 back with moveToXY + setPreviousSpeed (planar actuation) or get a speed through setSpeed
@@ -14,6 +15,7 @@ import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
 
 import libsumo
 import numpy as np
@@ -95,10 +97,14 @@ class SumoOptions:
     tripinfo_file: str | None = None
     statistics_file: str | None = None
     extra_args: tuple[str, ...] = ()
+    gui: bool = False
+    """Run sumo-gui (driven over TraCI) instead of libsumo's SUMO: the live view."""
+    gui_delay_ms: float = 0.0
+    """The live view's pause between steps [ms] (sumo-gui's `--delay`)."""
 
     def command(self) -> list[str]:
         cmd = [
-            sumo_binary("sumo"),
+            sumo_binary("sumo-gui" if self.gui else "sumo"),
             "--net-file", self.net_file,
             "--step-length", repr(self.step_s),
             "--begin", repr(self.begin_s),
@@ -127,14 +133,25 @@ class SumoOptions:
             cmd += ["--tripinfo-output.write-unfinished", "true"]
         if self.statistics_file:
             cmd += ["--statistic-output", self.statistics_file]
+        if self.gui:  # start at once, close with the run, no dialog on exit
+            cmd += ["--start", "--quit-on-end", "--delay", repr(float(self.gui_delay_ms))]
+            cmd += ["--window-size", "1280,800"]
         return [*cmd, *self.extra_args]
 
 
 class SumoBackend:
-    """One running SUMO simulation (libsumo allows only one per process)."""
+    """One running SUMO simulation (libsumo allows only one per process).
+
+    With `options.gui` the same calls go over TraCI to sumo-gui (the `traci` client has
+    libsumo's API): slower, for watching, with the same results."""
 
     def __init__(self, options: SumoOptions):
         self.options = options
+        self._api: ModuleType = libsumo
+        if options.gui:
+            import traci
+
+            self._api = traci
         self._running = False
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
@@ -158,17 +175,22 @@ class SumoBackend:
         """This step's arrivals read by the loop and the vehicles it removed itself."""
 
     def start(self) -> None:
+        if self.options.gui and not os.environ.get("DISPLAY"):
+            raise SumoError(
+                "sumo-gui needs a display and none is set (DISPLAY); on a machine without "
+                "one, run under a virtual display: xvfb-run -a platoon-sumo run ... --gui"
+            )
         try:
-            libsumo.start(self.options.command())
-        except libsumo.TraCIException as exc:
+            self._api.start(self.options.command())
+        except (self._api.TraCIException, self._api.FatalTraCIError) as exc:
             raise SumoError(f"SUMO did not start: {exc}") from None
         self._running = True
 
     def close(self) -> None:
         if self._running:
             self._running = False
-            with contextlib.suppress(libsumo.TraCIException):
-                libsumo.close()
+            with contextlib.suppress(self._api.TraCIException, self._api.FatalTraCIError):
+                self._api.close()
 
     def __enter__(self) -> SumoBackend:
         self.start()
@@ -179,20 +201,22 @@ class SumoBackend:
 
     @property
     def time_s(self) -> float:
-        return float(libsumo.simulation.getTime())
+        return float(self._api.simulation.getTime())
 
     def step(self) -> None:
         try:
-            libsumo.simulationStep()
-        except libsumo.TraCIException as exc:
+            self._api.simulationStep()
+        except self._api.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
-        veh, classes = libsumo.vehicle, self._type_classes
-        departed = self._departed = tuple(libsumo.simulation.getDepartedIDList())
-        self._in_network += len(departed) - libsumo.simulation.getArrivedNumber()
+        except self._api.FatalTraCIError as exc:  # TraCI only: sumo-gui's window was closed
+            raise SumoError(f"sumo-gui closed the connection ({exc}); the run stops") from None
+        veh, classes = self._api.vehicle, self._type_classes
+        departed = self._departed = tuple(self._api.simulation.getDepartedIDList())
+        self._in_network += len(departed) - self._api.simulation.getArrivedNumber()
         for vid in departed:
             type_id = veh.getTypeID(vid)
             if type_id not in classes:  # a type's first vehicle: its size and class
-                vt = libsumo.vehicletype
+                vt = self._api.vehicletype
                 size = float(vt.getLength(type_id) + vt.getWidth(type_id))
                 self._largest_m = max(self._largest_m, size)
                 classes[type_id] = str(vt.getVehicleClass(type_id))
@@ -205,7 +229,7 @@ class SumoBackend:
         built once), each known with its lane from the lane's listing; only their
         positions are read before the distance filter, so the cost follows the traffic
         around the platoons, not the network's size."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         wanted = list(dict.fromkeys(vehicle_ids))
         if not wanted:
             return _empty_world(self.time_s)
@@ -214,7 +238,7 @@ class SumoBackend:
         others: list[str] = []
         other_lanes: list[str] = []
         for lane in self._lanes_near(centres, radius_m):
-            for vid in libsumo.lane.getLastStepVehicleIDs(lane):
+            for vid in self._api.lane.getLastStepVehicleIDs(lane):
                 if vid not in seen:
                     seen.add(vid)
                     others.append(vid)
@@ -231,7 +255,7 @@ class SumoBackend:
     def _read(
         self, ids: tuple[str, ...], positions: NDArray[np.float64], lanes: tuple[str, ...]
     ) -> WorldSnapshot:
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         n = len(ids)
         angle = np.empty(n)
         speed = np.empty(n)
@@ -262,7 +286,7 @@ class SumoBackend:
         point (conservatively: by grid cell), in a fixed order."""
         grid = self._lane_grid
         if grid is None:
-            grid = self._lane_grid = _LaneGrid.build(_LANE_CELL_M)
+            grid = self._lane_grid = _LaneGrid.build(self._api, _LANE_CELL_M)
         return grid.near(points, radius_m)
 
     def vehicle_count(self) -> int:
@@ -276,7 +300,7 @@ class SumoBackend:
         least `min_wait_s`, neither stopped by their schedule (a stop, parking) nor
         within `RED_QUEUE_M` of a light ahead showing red, red-yellow or yellow (a queue
         at a light): (id, lane, x, y, seconds)."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         found = []
         for vid in veh.getIDList():
             waited = veh.getWaitingTime(vid)
@@ -319,8 +343,8 @@ class SumoBackend:
         sideways requests move it."""
         route_id = f"route_{vehicle_id}"
         try:
-            libsumo.route.add(route_id, list(edges))
-            libsumo.vehicle.add(
+            self._api.route.add(route_id, list(edges))
+            self._api.vehicle.add(
                 vehicle_id,
                 route_id,
                 typeID=type_id,
@@ -331,11 +355,11 @@ class SumoBackend:
             )
             if sumo_drives:
                 mode = LANE_CHANGE_REQUESTS_ONLY if steers else LANE_CHANGE_STRATEGIC_ONLY
-                libsumo.vehicle.setLaneChangeMode(vehicle_id, mode)
+                self._api.vehicle.setLaneChangeMode(vehicle_id, mode)
             else:  # we place it: SUMO must neither brake it nor change its lane
-                libsumo.vehicle.setSpeedMode(vehicle_id, 0)
-                libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
-        except libsumo.TraCIException as exc:
+                self._api.vehicle.setSpeedMode(vehicle_id, 0)
+                self._api.vehicle.setLaneChangeMode(vehicle_id, 0)
+        except self._api.TraCIException as exc:
             raise SumoError(f"cannot insert vehicle '{vehicle_id}': {exc}") from None
 
     def add_vehicle_type(
@@ -355,7 +379,7 @@ class SumoBackend:
         driver imperfection, and with `tau_s` for SUMO's safe speed in lane actuation.
         `speed_factor`: every vehicle's factor on lane speed limits, without spread (None:
         drawn per vehicle as for SUMO's default type)."""
-        vt = libsumo.vehicletype
+        vt = self._api.vehicletype
         try:
             vt.copy("DEFAULT_VEHTYPE", type_id)
             vt.setVehicleClass(type_id, vclass)
@@ -378,33 +402,33 @@ class SumoBackend:
     def lane_is_free(self, lane_id: str, from_m: float, to_m: float) -> bool:
         """No vehicle's footprint overlaps [from_m, to_m] along the lane (positions from the
         lane start; a vehicle spans [pos - length, pos])."""
-        for vid in libsumo.lane.getLastStepVehicleIDs(lane_id):
-            front = libsumo.vehicle.getLanePosition(vid)
-            if front > from_m and front - libsumo.vehicle.getLength(vid) < to_m:
+        for vid in self._api.lane.getLastStepVehicleIDs(lane_id):
+            front = self._api.vehicle.getLanePosition(vid)
+            if front > from_m and front - self._api.vehicle.getLength(vid) < to_m:
                 return False
         return True
 
     def lane_occupants(self, lane_id: str) -> list[tuple[str, float, float, float]]:
         """(id, front position along the lane, speed, length) of every vehicle on the lane."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         return [
             (vid, veh.getLanePosition(vid), veh.getSpeed(vid), veh.getLength(vid))
-            for vid in libsumo.lane.getLastStepVehicleIDs(lane_id)
+            for vid in self._api.lane.getLastStepVehicleIDs(lane_id)
         ]
 
     def lane_shape(self, lane_id: str) -> NDArray[np.float64]:
         """The lane's centre-line, (n, 2) network coordinates."""
-        return np.asarray(libsumo.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
+        return np.asarray(self._api.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
 
     def lane_width(self, lane_id: str) -> float:
-        return float(libsumo.lane.getWidth(lane_id))
+        return float(self._api.lane.getWidth(lane_id))
 
     def departed_ids(self) -> tuple[str, ...]:
         """Vehicles SUMO inserted in the last step (read once, in `step`)."""
         return self._departed
 
     def arrived_ids(self) -> tuple[str, ...]:
-        arrived = tuple(libsumo.simulation.getArrivedIDList())
+        arrived = tuple(self._api.simulation.getArrivedIDList())
         for vid in arrived:
             self._geometry.pop(vid, None)
             self._lanes_behind.pop(vid, None)
@@ -419,7 +443,7 @@ class SumoBackend:
         someone else (a hook or plug-in calling libsumo): SUMO lists them with that
         step's arrivals until the next step."""
         gone = tuple(
-            vid for vid in libsumo.simulation.getArrivedIDList() if vid not in self._known_gone
+            vid for vid in self._api.simulation.getArrivedIDList() if vid not in self._known_gone
         )
         for vid in gone:
             self._geometry.pop(vid, None)
@@ -433,7 +457,7 @@ class SumoBackend:
 
     def teleported_ids(self) -> tuple[str, ...]:
         """Vehicles SUMO started to teleport in the last step."""
-        return tuple(libsumo.simulation.getStartingTeleportIDList())
+        return tuple(self._api.simulation.getStartingTeleportIDList())
 
     def move(
         self,
@@ -448,14 +472,14 @@ class SumoBackend:
         Returns the vehicles SUMO could not place on their route, with SUMO's reason; the
         caller decides what happens to them (one lost vehicle must not end a long run)."""
         angles = (90.0 - np.degrees(yaw_rad)) % 360.0
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         failed: dict[str, str] = {}
         for i, vid in enumerate(vehicle_ids):
             try:
                 veh.moveToXY(vid, "", -1, float(front_x_m[i]), float(front_y_m[i]),
                              float(angles[i]), keepRoute=1)  # fmt: skip
                 veh.setPreviousSpeed(vid, float(speed_mps[i]))
-            except libsumo.TraCIException as exc:
+            except self._api.TraCIException as exc:
                 failed[vid] = (
                     f"cannot place '{vid}' at ({front_x_m[i]:.2f}, {front_y_m[i]:.2f}) "
                     f"at t={self.time_s:.2f} s: {exc}"
@@ -464,7 +488,7 @@ class SumoBackend:
 
     def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: NDArray[np.float64]) -> None:
         """Speed commands for SUMO-driven (lane actuation) platoon vehicles, next step."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps, strict=True):
             veh.setSpeed(vid, float(speed))
 
@@ -473,10 +497,10 @@ class SumoBackend:
 
         SUMO makes the change when the target lane's gap is safe (lane-change mode); a
         request for a lane that does not exist is dropped, as a driver would."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         for vid, direction in requests.items():
             lane = veh.getLaneIndex(vid) + direction
-            if veh.getLaneID(vid).startswith(":") or not 0 <= lane < libsumo.edge.getLaneNumber(
+            if veh.getLaneID(vid).startswith(":") or not 0 <= lane < self._api.edge.getLaneNumber(
                 veh.getRoadID(vid)
             ):
                 continue
@@ -495,7 +519,7 @@ class SumoBackend:
         A slow vehicle on a lane from which its route cannot go on within
         `LANE_END_REACH_M` (SUMO's best lanes) is handed to SUMO's own lane change
         instead (`_hand_over`) until it is on a lane that continues, near its centre."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps.tolist(), strict=True):
             if self._hand_over(vid):
                 continue
@@ -530,7 +554,7 @@ class SumoBackend:
         route path, or the predecessor a laser follower tracks, itself waiting on the
         lane between for a gap (a follower handed over at 2 m/s, given back on its
         target lane, steered back across at 2.2 m/s sideways)."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         handed = vid in self._handed_over
         lane_id = veh.getLaneID(vid)
         speed = veh.getSpeed(vid)
@@ -578,8 +602,8 @@ class SumoBackend:
         (where its route leaves its lane, SUMO's best lanes) cross the lanes steeper
         than `STEER_MAX_LANE_ANGLE_RAD` and faster sideways than
         `STEER_COMFORT_LATERAL_MPS` at its speed?"""
-        veh = libsumo.vehicle
-        sideways = abs(offset) * float(libsumo.lane.getWidth(lane_id)) - math.copysign(
+        veh = self._api.vehicle
+        sideways = abs(offset) * float(self._api.lane.getWidth(lane_id)) - math.copysign(
             veh.getLateralLanePosition(vid), offset
         )
         speed = max(veh.getSpeed(vid), 1e-3)
@@ -598,7 +622,7 @@ class SumoBackend:
         behind are the ones this method saw the vehicle drive along, one per edge (call it
         every step); beyond them a lane's first or last segment is extended. A vehicle on no lane
         (teleporting) gets its own angle twice."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         now = np.empty(len(vehicle_ids))
         later = np.empty(len(vehicle_ids))
         for i, (vid, ahead) in enumerate(zip(vehicle_ids, ahead_m.tolist(), strict=True)):
@@ -624,7 +648,7 @@ class SumoBackend:
         """Has each vehicle any part of its body on a junction's internal lane (its front
         on one, or its back still on one of the lanes `body_directions` saw it drive
         along)? Call after `body_directions` in the same step."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         out = np.zeros(len(vehicle_ids), dtype=np.bool_)
         for i, vid in enumerate(vehicle_ids):
             lanes = self._lanes_behind.get(vid)
@@ -678,11 +702,12 @@ class SumoBackend:
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: at the end of its route as an arrival (tripinfo),
         or vaporised when SUMO can no longer place it."""
-        reason = libsumo.constants.REMOVE_ARRIVED if arrived else libsumo.constants.REMOVE_VAPORIZED
+        constants = self._api.constants
+        reason = constants.REMOVE_ARRIVED if arrived else constants.REMOVE_VAPORIZED
         try:
-            on_road = bool(libsumo.vehicle.getRoadID(vehicle_id))
-            libsumo.vehicle.remove(vehicle_id, reason)
-        except libsumo.TraCIException as exc:
+            on_road = bool(self._api.vehicle.getRoadID(vehicle_id))
+            self._api.vehicle.remove(vehicle_id, reason)
+        except self._api.TraCIException as exc:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
         self._in_network -= on_road  # SUMO does not count our removals as arrivals
         self._geometry.pop(vehicle_id, None)
@@ -704,7 +729,7 @@ class SumoBackend:
         ]
 
     def next_signal(self, vehicle_id: str) -> SignalAhead | None:
-        tls = libsumo.vehicle.getNextTLS(vehicle_id)
+        tls = self._api.vehicle.getNextTLS(vehicle_id)
         if not tls:
             return None
         tls_id, link_index, distance, state = tls[0]
@@ -715,7 +740,7 @@ class SumoBackend:
         end, or when the lane ends farther than `horizon_m`). SUMO's link query is the
         dearest of the per-vehicle reads (it also slows SUMO's next step), so it is only
         made when the link is within reach."""
-        veh = libsumo.vehicle
+        veh = self._api.vehicle
         lane = veh.getLaneID(vehicle_id)
         if not lane or lane.startswith(":"):
             return None
@@ -731,28 +756,28 @@ class SumoBackend:
     def _lane_edge(self, lane_id: str) -> str:
         edge = self._lane_edges.get(lane_id)
         if edge is None:
-            edge = self._lane_edges[lane_id] = str(libsumo.lane.getEdgeID(lane_id))
+            edge = self._lane_edges[lane_id] = str(self._api.lane.getEdgeID(lane_id))
         return edge
 
     def _lane_length(self, lane_id: str) -> float:
         length = self._lane_lengths.get(lane_id)
         if length is None:
-            length = self._lane_lengths[lane_id] = float(libsumo.lane.getLength(lane_id))
+            length = self._lane_lengths[lane_id] = float(self._api.lane.getLength(lane_id))
         return length
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
         """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""
-        found = libsumo.vehicle.getLeader(vehicle_id, horizon_m)
+        found = self._api.vehicle.getLeader(vehicle_id, horizon_m)
         if not found or not found[0]:
             return None
         other = str(found[0])
         # getLeader's distance excludes the asking vehicle's minGap: add it back.
-        gap = float(found[1]) + libsumo.vehicle.getMinGap(vehicle_id)
-        return VehicleAhead(other, gap, float(libsumo.vehicle.getSpeed(other)))
+        gap = float(found[1]) + self._api.vehicle.getMinGap(vehicle_id)
+        return VehicleAhead(other, gap, float(self._api.vehicle.getSpeed(other)))
 
     def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
         """Collisions SUMO itself detected this step: (collider, victim, type)."""
-        for c in libsumo.simulation.getCollisions():
+        for c in self._api.simulation.getCollisions():
             yield c.collider, c.victim, c.type
 
 
@@ -783,12 +808,12 @@ class _LaneGrid:
     around: dict[tuple[int, int, int], frozenset[int]] = field(default_factory=dict)
 
     @classmethod
-    def build(cls, cell_m: float) -> _LaneGrid:
-        lane_ids = tuple(sorted(libsumo.lane.getIDList()))
+    def build(cls, api: ModuleType, cell_m: float) -> _LaneGrid:
+        lane_ids = tuple(sorted(api.lane.getIDList()))
         cells: dict[tuple[int, int], list[int]] = {}
         for k, lane in enumerate(lane_ids):
-            shape = np.asarray(libsumo.lane.getShape(lane), dtype=np.float64).reshape(-1, 2)
-            pad = 0.5 * float(libsumo.lane.getWidth(lane))
+            shape = np.asarray(api.lane.getShape(lane), dtype=np.float64).reshape(-1, 2)
+            pad = 0.5 * float(api.lane.getWidth(lane))
             for a, b in itertools.pairwise(shape) if len(shape) > 1 else ():
                 lo = np.floor((np.minimum(a, b) - pad) / cell_m).astype(int)
                 hi = np.floor((np.maximum(a, b) + pad) / cell_m).astype(int)
