@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from platoon_sumo.scenario import RunPlan
     from platoon_sumo.sensors.laser import LaserScan
 
-DEFAULT_SCENARIO = Path("scenarios") / "urban_grid.yaml"
+DEFAULT_SCENARIO = Path("scenarios") / "urban_platoon.yaml"
 #: Set to show the traceback of an internal error instead of one line.
 TRACEBACK_ENV = "PLATOON_SUMO_TRACEBACK"
 
@@ -124,6 +124,7 @@ def _network_warnings(plan: RunPlan) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from platoon_sumo.digest import run_digest
     from platoon_sumo.live_view import LiveViewOptions
     from platoon_sumo.runner import load_plan, run
 
@@ -160,15 +161,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"{jam['where']} (summary.json: gridlock_events)",
             file=sys.stderr,
         )
-    pv = s["platoon_vehicles"]
-    print(
-        f"{s['scenario']}: {s['simulated_s']:.0f} s simulated in {s['wall_clock_s']:.1f} s "
-        f"({s['real_time_factor']}x real time); platoon vehicles {pv['arrived']}/{pv['planned']} "
-        f"arrived, {s['collisions']} collisions, {s['teleports']} teleports, "
-        f"{s['red_light_violations']} red-light violations, {s['gridlocks']} gridlocked "
-        f"vehicles\nresults: {result.directory}"
-    )
+    print(run_digest(s, result.directory, _as_typed(path)))
     return 0
+
+
+def _as_typed(path: Path) -> Path:
+    """`path` relative to the working directory when it lies below it (to type again)."""
+    try:
+        return path.resolve().relative_to(Path.cwd())
+    except ValueError:
+        return path
 
 
 class ScanGrabber:

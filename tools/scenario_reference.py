@@ -45,7 +45,7 @@ from platoon_sumo.yaml_input import MAX_ALIAS_NODES, MAX_BYTES, MAX_DEPTH
 
 ROOT = Path(__file__).resolve().parent.parent
 OUTPUT = ROOT / "docs" / "scenarios.md"
-EXAMPLE = ROOT / "scenarios" / "urban_grid.yaml"
+EXAMPLE = ROOT / "scenarios" / "urban_platoon.yaml"
 
 # What the loader does beyond the dataclass defaults (platoon_sumo.scenario.load_scenario).
 _DEFAULT_OVERRIDES = {

@@ -6,7 +6,7 @@ import numpy as np
 
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import REPO, URBAN_GRID_NET
+from tests.helpers import URBAN_GRID_NET
 
 EAST = ["left1A1", "A1B1", "B1C1", "C1right1"]
 
@@ -114,11 +114,6 @@ def test_same_scenario_and_seed_give_identical_outputs(write_scenario, tmp_path)
         assert (first / name).read_bytes() == (second / name).read_bytes(), name
         assert (first / name).read_bytes() == (third / name).read_bytes(), name
     assert (first / "trajectories.csv").stat().st_size > 10_000
-
-
-def test_default_scenario_file_is_valid():
-    plan = load_plan(REPO / "scenarios" / "urban_grid.yaml")
-    assert plan.platoons and plan.scenario.traffic.random_trips is not None
 
 
 def test_a_relative_results_folder_works_from_any_working_directory(
