@@ -97,11 +97,12 @@ class PlatoonStats:
     platoon_id: str
     members: int
     complete_steps: int = 0
+    judged_steps: int = 0
+    """Complete steps on which every follower had a scan to judge its view by."""
     intact_steps: int = 0
     splits: int = 0
     window_splits: int = 0
     """Splits from the start of the metrics window (the string-stability verdict's)."""
-    _intact: bool = False
 
 
 class RunStats:
@@ -257,7 +258,10 @@ class RunStats:
         for k, pid in enumerate(columns["platoon_id"]):
             groups.setdefault(str(pid), []).append(k)
         index = _floats(columns, "member_index", n)
-        intact_row = ~has_pred | (in_view > 0.0)  # NaN (no scan) compares False
+        intact_row = ~has_pred | (in_view > 0.0)
+        # a follower with a laser but no scan yet (its first step) is not judged; one
+        # without a laser never is: its platoon has no intactness (None)
+        judged_row = ~has_pred | ~np.isnan(in_view)
         for pid, members in groups.items():
             planned = self.planned.get(pid)
             if planned is None:
@@ -267,12 +271,11 @@ class RunStats:
                 p = self.platoons[pid] = PlatoonStats(pid, planned)
             p.members = max(p.members, len(members))
             if len(members) < p.members or len(members) < 2:
-                p._intact = False
                 continue
             p.complete_steps += 1
-            intact = bool(intact_row[members].all())
-            p.intact_steps += int(intact)
-            p._intact = intact
+            if judged_row[members].all():
+                p.judged_steps += 1
+                p.intact_steps += int(intact_row[members].all())
 
     def add_events(self, events: Iterable[Event]) -> None:
         """Count a step's events per vehicle and platoon (the one source of every event
@@ -477,7 +480,7 @@ def platoon_summary(
 ) -> dict[str, Any]:
     """One platoons.csv row from the platoon's counters and its members' summaries (with
     their frequency-response fields, and the platoon's `method`, when estimated)."""
-    intact_share = p.intact_steps / p.complete_steps if p.complete_steps else None
+    intact_share = p.intact_steps / p.judged_steps if p.judged_steps else None
     followers = sorted((m for m in members if m.get("saturated_share") is not None),
                        key=lambda m: m["member_index"])  # fmt: skip
     leader_speed_std = followers[0].get("predecessor_speed_std_mps") if followers else None

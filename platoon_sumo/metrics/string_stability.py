@@ -278,7 +278,7 @@ def assess(
     )
     if not followers:
         return _verdict(NO_FOLLOWERS)
-    # followers without a laser have no view to lose (intact_share counts them as out)
+    # followers without a laser have no view to lose (their platoon has no intact_share)
     scanning = all(m.get("in_view_share") is not None for m in followers)
     lost_view = any(m.get("lost_scans") for m in followers) or (
         scanning and intact_share is not None and intact_share < 1.0

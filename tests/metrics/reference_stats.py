@@ -213,10 +213,10 @@ class PlatoonStats:
     platoon_id: str
     members: int
     complete_steps: int = 0
+    judged_steps: int = 0
     intact_steps: int = 0
     splits: int = 0
     window_splits: int = 0
-    _intact: bool = False
 
 
 class RunStats:
@@ -321,14 +321,12 @@ class RunStats:
                 p = self.platoons[pid] = PlatoonStats(pid, planned)
             p.members = max(p.members, len(members))
             if len(members) < p.members or len(members) < 2:
-                p._intact = False
                 continue
             p.complete_steps += 1
-            intact = all(
-                _in_view(r) is True for r in members if _text(r, "predecessor_id") is not None
-            )
-            p.intact_steps += int(intact)
-            p._intact = intact
+            views = [_in_view(r) for r in members if _text(r, "predecessor_id") is not None]
+            if None not in views:  # every follower has a scan to judge by
+                p.judged_steps += 1
+                p.intact_steps += int(all(views))
 
     def add_events(self, events: Iterable[Event]) -> None:
         """Count a step's events per vehicle and platoon (the one source of every event

@@ -99,6 +99,21 @@ def test_platoon_summary_string_stability_and_intactness():
     assert unstable["string_stability_verdict"] == "unstable"
 
 
+def test_followers_before_their_first_scan_do_not_break_the_platoon():
+    """On a platoon's first step the followers have no scan yet (predecessor_in_view
+    empty): not a lost view, so a platoon that then always sees is intact and stable."""
+    table = platoon_table(gain=0.5, lost=())
+    first = (table.time_s == 0.0) & (table.member_index > 0)
+    table.loc[first, ["predecessor_rays", "predecessor_in_view"]] = np.nan
+    (p,) = summarise_trajectories(table, planned={"p": 3}).platoon_summaries()
+    assert p["intact_share"] == 1.0
+    assert p["string_stability_verdict"] == "stable"
+    # a follower without a laser at all: no intactness to report
+    table.loc[table.member_index > 0, ["predecessor_rays", "predecessor_in_view"]] = np.nan
+    (p,) = summarise_trajectories(table, planned={"p": 3}).platoon_summaries()
+    assert p["intact_share"] is None
+
+
 def test_a_platoon_that_split_is_not_string_stable():
     """p.2 misses p.1 on two scans: whatever the gains, the platoon was not intact."""
     (p,) = summarise_trajectories(platoon_table(gain=0.5), planned={"p": 3}).platoon_summaries()
