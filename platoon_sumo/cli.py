@@ -307,13 +307,25 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p_run.set_defaults(func=_cmd_run)
     p_scan = sub.add_parser("scan", help="run a scenario to a time and draw a laser scan as PNG")
-    p_scan.add_argument("scenario")
-    p_scan.add_argument("--at", type=float, required=True, help="simulation time [s]")
-    p_scan.add_argument("--vehicle", help="platoon vehicle id, e.g. p1.2 (default: the first)")
-    p_scan.add_argument("--out", default="laser_scan.png", help="PNG file to write")
+    p_scan.add_argument("scenario", help="scenario YAML to run (nothing of the run is kept)")
+    p_scan.add_argument(
+        "--at", type=float, required=True, metavar="T",
+        help="simulated time [s] at which to draw the scan (the latest scan by then)",
+    )  # fmt: skip
+    p_scan.add_argument(
+        "--vehicle", metavar="ID",
+        help="which platoon vehicle's laser, e.g. cars.2 (default: the first with a laser)",
+    )  # fmt: skip
+    p_scan.add_argument(
+        "--out", metavar="PATH", default="laser_scan.png",
+        help="PNG file to write (default: laser_scan.png in the working directory)",
+    )  # fmt: skip
     p_scan.set_defaults(func=_cmd_scan)
     p_val = sub.add_parser("validate", help="check a scenario file without running it")
-    p_val.add_argument("scenario")
+    p_val.add_argument(
+        "scenario", help="scenario YAML: checked against its files and network, with warnings "
+        "about signal phases and sensing",
+    )  # fmt: skip
     p_val.set_defaults(func=_cmd_validate)
     p_rep = sub.add_parser("report", help="figures and report.md of a results folder")
     p_rep.add_argument("results", help="results folder of a finished run")
