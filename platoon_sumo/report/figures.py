@@ -49,48 +49,86 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
+def platoon_colors(traj: pd.DataFrame) -> dict[str, dict[str, Any]]:
+    """{platoon id: {vehicle id: colour}}: one hue per platoon (tab10, in platoon-id
+    order) so platoons can be told apart, its members in shades of it from the leader
+    (the full colour) to the last follower (the palest), so order shows too."""
+    plt = _plt()
+    from matplotlib.colors import to_rgb
+
+    colors: dict[str, dict[str, Any]] = {}
+    for k, pid in enumerate(sorted(traj["platoon_id"].astype(str).unique())):
+        base = np.array(to_rgb(plt.get_cmap("tab10")(k % 10)))
+        members = _members(traj[traj["platoon_id"].astype(str) == pid])
+        paleness = np.linspace(0.0, 0.6, len(members)) if len(members) > 1 else [0.0]
+        colors[pid] = {
+            vid: tuple(base + (1.0 - base) * p)
+            for (vid, _), p in zip(members, paleness, strict=True)
+        }
+    return colors
+
+
 def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
     """Every platoon vehicle's path over the lanes of the network (sumolib shapes)."""
+    fig = network_map_figure(traj, net_file)
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    _plt().close(fig)
+    return path
+
+
+def network_map_figure(traj: pd.DataFrame, net_file: Path | None) -> Any:
+    """The map of `network_map`: one colour per platoon (`platoon_colors`), the leader's
+    path drawn thicker, a legend entry per platoon."""
     plt = _plt()
+    from matplotlib.lines import Line2D
+
     fig, ax = plt.subplots(figsize=(8.0, 7.0), layout="constrained")
     x0, x1 = traj["x_m"].min(), traj["x_m"].max()
     y0, y1 = traj["y_m"].min(), traj["y_m"].max()
     pad = max(30.0, 0.08 * max(x1 - x0, y1 - y0))
     if net_file is not None and net_file.is_file():
-        import sumolib
-        from matplotlib.collections import LineCollection
-
-        net = sumolib.net.readNet(str(net_file), withInternal=True)
-        shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
-        ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
-        junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
-        for shape in junctions:
-            ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
-    platoons = sorted(traj["platoon_id"].unique())
-    for pid in platoons:
-        members = _members(traj[traj["platoon_id"] == pid])
-        for (vid, rows), color in zip(members, _colors(len(members)), strict=True):
-            ax.plot(
-                rows["x_m"], rows["y_m"], color=color, lw=1.2, label=_label(vid, rows), zorder=3
-            )
-            ax.plot(rows["x_m"].iloc[0], rows["y_m"].iloc[0], "o", color=color, ms=4, zorder=4)
-            ax.plot(rows["x_m"].iloc[-1], rows["y_m"].iloc[-1], "s", color=color, ms=4, zorder=4)
+        _draw_network(ax, net_file)
+    handles = []
+    for pid, colors in platoon_colors(traj).items():
+        members = _members(traj[traj["platoon_id"].astype(str) == pid])
+        for vid, rows in members:
+            color = colors[vid]
+            lead = rows["role"].iloc[0] == "leader"  # below, so followers show along it
+            ax.plot(rows["x_m"], rows["y_m"], color=color, lw=2.8 if lead else 1.0,
+                    zorder=3 if lead else 4)  # fmt: skip
+            ax.plot(rows["x_m"].iloc[0], rows["y_m"].iloc[0], "o", color=color, ms=4, zorder=5)
+            ax.plot(rows["x_m"].iloc[-1], rows["y_m"].iloc[-1], "s", color=color, ms=4, zorder=5)
+        leader = members[0][0]
+        handles.append(Line2D([], [], color=colors[leader], lw=2.8, label=(
+            f"platoon {pid}: {len(members)} vehicle{'s' if len(members) > 1 else ''}, "
+            f"leader {leader} (thick)")))  # fmt: skip
     ax.set_xlim(x0 - pad, x1 + pad)
     ax.set_ylim(y0 - pad, y1 + pad)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title("Platoon paths over the network (front bumpers; o start, \u25a0 end)")
-    vehicles = len(traj["vehicle_id"].unique())
-    if vehicles <= 8:
-        ax.legend(loc="best", fontsize=8)
+    ax.set_title("Platoon paths over the network (front bumpers; o start, \u25a0 end;\n"
+                 "one colour per platoon, followers paler along it)")  # fmt: skip
+    if len(handles) <= 6:
+        ax.legend(handles=handles, loc="best", fontsize=8)
     else:  # below the map, where it hides no path
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
-                  ncol=min(6, 1 + vehicles // 6))  # fmt: skip
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize=8,
+                  ncol=min(3, 1 + len(handles) // 6))  # fmt: skip
     ax.grid(True, alpha=0.3)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    return fig
+
+
+def _draw_network(ax: Any, net_file: Path) -> None:
+    """Lanes as grey lines and junctions as pale areas (sumolib shapes)."""
+    import sumolib
+    from matplotlib.collections import LineCollection
+
+    net = sumolib.net.readNet(str(net_file), withInternal=True)
+    shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
+    ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
+    junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
+    for shape in junctions:
+        ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
 
 
 def spacing_and_speed(traj: pd.DataFrame, platoon_id: str, path: Path) -> Path:
