@@ -60,3 +60,96 @@ def test_platoon_colours_shade_members_of_one_hue():
         assert list(members) == [f"{pid}.{i}" for i in range(PLATOONS[pid])]
         brightness = [sum(c) for c in members.values()]
         assert brightness == sorted(brightness)  # paler down the platoon
+
+
+# -- panels without data say so ---------------------------------------------------------
+
+
+def vehicle_table(traj: pd.DataFrame) -> pd.DataFrame:
+    """Per-member metrics as the run writes them: a leader has no spacing error or gain."""
+    members = traj.groupby("vehicle_id").first().reset_index()
+    follower = members["member_index"] > 0
+    return pd.DataFrame({
+        "vehicle_id": members["vehicle_id"], "platoon_id": members["platoon_id"],
+        "member_index": members["member_index"], "rms_accel_mps2": 0.2,
+        "max_abs_spacing_error_m": np.where(follower, 0.5, np.nan),
+        "rms_spacing_error_m": np.where(follower, 0.3, np.nan),
+        "accel_l2_gain": np.where(follower, 0.9, np.nan),
+    })  # fmt: skip
+
+
+def texts(ax) -> list[str]:
+    return [t.get_text() for t in ax.texts]
+
+
+def assert_not_available(ax) -> None:
+    """A centred "n/a: why" note, nothing drawn, no value ticks."""
+    notes = [t for t in ax.texts if t.get_text().startswith("n/a:")]
+    assert len(notes) == 1, texts(ax)
+    assert notes[0].get_position() == (0.5, 0.5) and notes[0].get_transform() == ax.transAxes
+    assert notes[0].get_text().strip() != "n/a:"  # says why
+    assert not ax.patches and not ax.get_lines()
+    assert len(ax.get_yticks()) == 0
+
+
+def test_compare_bars_of_one_car_runs_say_n_a_instead_of_bars_of_zero():
+    lone = trajectories({"solo": 1})
+    table = pd.DataFrame({"run": ["a", "b"], "max_rms_spacing_error_m": [np.nan, np.nan],
+                          "max_rms_accel_mps2": [0.2, 0.3]})  # fmt: skip
+    assert len(lone) and table["max_rms_spacing_error_m"].isna().all()
+    metrics = (("max_rms_spacing_error_m", "RMS spacing error [m]"), ("min_gap_m", "min gap [m]"),
+               ("max_rms_accel_mps2", "RMS accel. [m/s²]"))  # fmt: skip
+    fig = figures.compare_bars_figure(table, metrics)
+    empty_a, empty_b, filled = fig.axes
+    for ax in (empty_a, empty_b):  # all NaN, and a column the table lacks
+        assert_not_available(ax)
+        assert len(ax.get_xticks()) == 0
+    assert len(filled.patches) == len(table) and not any("n/a" in t for t in texts(filled))
+
+
+def test_a_run_without_the_metric_gets_n_a_where_its_bar_would_be():
+    table = pd.DataFrame({"run": ["a", "b", "c"], "min_gap_m": [4.0, np.nan, 6.0]})
+    (ax,) = figures.compare_bars_figure(table, (("min_gap_m", "min gap [m]"),)).axes
+    missing = table["min_gap_m"].isna().to_numpy()
+    notes = [t for t in ax.texts if t.get_text() == "n/a"]
+    assert [t.get_position()[0] for t in notes] == list(np.flatnonzero(missing))
+    heights = [p.get_height() for p in ax.patches]
+    assert np.array_equal(np.isnan(heights), missing)  # no bar of zero
+
+
+def test_string_stability_of_a_lone_leader_says_n_a_along_the_platoon():
+    traj = trajectories({"solo": 1})
+    fig = figures.string_stability_figure(traj, vehicle_table(traj), "solo")
+    accel, along = fig.axes
+    assert len(accel.get_lines()) == 1
+    assert_not_available(along)
+
+
+def test_string_stability_with_followers_draws_their_bars():
+    traj = trajectories()
+    fig = figures.string_stability_figure(traj, vehicle_table(traj), "east")
+    _, along = fig.axes
+    assert len(along.patches) == 2 * PLATOONS["east"]
+    assert sum(t.startswith("\u03b3=") for t in texts(along)) == PLATOONS["east"] - 1
+
+
+def test_spacing_panel_of_a_lone_leader_says_n_a_and_keeps_the_shared_time_axis():
+    traj = trajectories({"solo": 1})
+    speed, spacing = figures.spacing_and_speed_figure(traj, "solo").axes
+    assert_not_available(spacing)
+    assert len(spacing.get_xticks()) > 0  # the speed panel's time axis
+    assert len(speed.get_lines()) == 1
+
+
+def test_compare_along_one_car_runs_says_n_a_in_both_panels():
+    traj = trajectories({"solo": 1})
+    runs = [("a", vehicle_table(traj)), ("b", vehicle_table(traj))]
+    for ax in figures.compare_along_figure(runs).axes:
+        assert_not_available(ax)
+
+
+def test_compare_along_draws_the_runs_with_followers():
+    traj = trajectories()
+    gain, spacing = figures.compare_along_figure([("a", vehicle_table(traj))]).axes
+    assert len(gain.get_lines()) > len(PLATOONS)  # the runs' lines and the gain-1 line
+    assert len(spacing.get_lines()) == len(PLATOONS)
