@@ -96,6 +96,13 @@ def load_plan(
     return prepare(source)
 
 
+def results_directory(plan: RunPlan) -> Path:
+    """The plan's results folder: `outputs.directory`, default `results/<name>`, relative
+    to the working directory."""
+    sc = plan.scenario
+    return Path(sc.outputs.directory or Path("results") / sc.name)
+
+
 def run(
     plan: RunPlan,
     out_dir: str | Path | None = None,
@@ -107,7 +114,7 @@ def run(
     finished). A failed or interrupted run keeps what it wrote, with FAILED.txt (the
     reason and its traceback) and its manifest saying so."""
     sc = plan.scenario
-    directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name).resolve()
+    directory = Path(out_dir or results_directory(plan)).resolve()
     folder = claim(directory, "run", OUTPUT_NAMES, force)
     try:
         (directory / "scenario.yaml").write_text(
