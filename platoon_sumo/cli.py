@@ -174,13 +174,16 @@ def _as_typed(path: Path) -> Path:
 
 
 class ScanGrabber:
-    """Keeps the latest scan of one vehicle with the obstacles of the world it saw."""
+    """Keeps the latest scan of one vehicle with the obstacles of the world it saw, and
+    which of them are the scanning car and its predecessor (rows of `rectangles`)."""
 
     def __init__(self, vehicle_id: str | None):
         self.vehicle_id = vehicle_id
         self.scan: LaserScan | None = None
         self.rectangles: np.ndarray | None = None
         self.segments: np.ndarray | None = None
+        self.scanner: tuple[int, str] | None = None
+        self.predecessor: tuple[int, str] | None = None
 
     def on_start(self, run: RunContext) -> None:
         self.segments = run.static_segments
@@ -195,7 +198,30 @@ class ScanGrabber:
             scan = v.scan
             if wanted and scan is not None and seen is not None and seen.time_s == scan.stamp_s:
                 self.scan, self.rectangles = scan, record.sensed_footprints
+                self.scanner = _row_of(seen.index, v.id)
+                self.predecessor = _row_of(seen.index, v.predecessor_id)
                 break
+
+
+def _row_of(index: dict[str, int], vehicle_id: str | None) -> tuple[int, str] | None:
+    """(row, id) of a vehicle among the footprints a scan saw; None if it is not there."""
+    if vehicle_id is None or vehicle_id not in index:
+        return None
+    return index[vehicle_id], vehicle_id
+
+
+def _scan_path(out: str | None, plan: RunPlan, vehicle_id: str, stamp_s: float) -> Path:
+    """Where the scan's PNG goes: `--out` as a file (a name ending in .png), else a new
+    file in the folder `--out` names, or in the scenario's results folder."""
+    from platoon_sumo.results import add_file
+    from platoon_sumo.runner import results_directory
+
+    if out is not None and Path(out).suffix.lower() == ".png" and not Path(out).is_dir():
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
+        return Path(out)
+    safe_id = "".join(c if c.isalnum() or c in "._-" else "_" for c in vehicle_id)
+    folder = Path(out) if out is not None else results_directory(plan)
+    return add_file(folder, f"laser_scan_{safe_id}_t{stamp_s:g}.png")
 
 
 def _cmd_scan(args: argparse.Namespace) -> int:
@@ -216,15 +242,21 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     grabber = ScanGrabber(args.vehicle)
     with tempfile.TemporaryDirectory() as tmp:
         run(plan, out_dir=tmp, hooks=[grabber])
-    if grabber.scan is None:
+    scan = grabber.scan
+    if scan is None or grabber.scanner is None:
         who = f"vehicle '{args.vehicle}'" if args.vehicle else "any platoon vehicle"
         raise ScenarioError(
             args.scenario, "platoons", f"no laser scan of {who} by t = {args.at} s",
             "give the platoon a sensor, and a time after it departs",
         )  # fmt: skip
-    path = plot_scan(grabber.scan, grabber.rectangles, grabber.segments, args.out,
-                     title=f"{args.scenario} t = {grabber.scan.stamp_s:.2f} s")  # fmt: skip
-    print(f"scan written to {path}")
+    vehicle_id = grabber.scanner[1]
+    predecessor = f", predecessor {grabber.predecessor[1]}" if grabber.predecessor else ""
+    title = (f"Laser scan of {vehicle_id} at t = {scan.stamp_s:.2f} s{predecessor}\n"
+             f"({plan.scenario.name})")  # fmt: skip
+    path = _scan_path(args.out, plan, vehicle_id, scan.stamp_s)
+    plot_scan(scan, grabber.rectangles, grabber.segments, path, title=title,
+              scanner=grabber.scanner, predecessor=grabber.predecessor)  # fmt: skip
+    print(f"scan written to {path} ({vehicle_id} at t = {scan.stamp_s:.2f} s)")
     return 0
 
 
@@ -334,13 +366,27 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p_run.set_defaults(func=_cmd_run)
     p_scan = sub.add_parser("scan", help="run a scenario to a time and draw a laser scan as PNG")
-    p_scan.add_argument("scenario")
-    p_scan.add_argument("--at", type=float, required=True, help="simulation time [s]")
-    p_scan.add_argument("--vehicle", help="platoon vehicle id, e.g. p1.2 (default: the first)")
-    p_scan.add_argument("--out", default="laser_scan.png", help="PNG file to write")
+    p_scan.add_argument("scenario", help="scenario YAML to run (nothing of the run is kept)")
+    p_scan.add_argument(
+        "--at", type=float, required=True, metavar="T",
+        help="simulated time [s] at which to draw the scan (the latest scan by then)",
+    )  # fmt: skip
+    p_scan.add_argument(
+        "--vehicle", metavar="ID",
+        help="which platoon vehicle's laser, e.g. cars.2 (default: the first with a laser)",
+    )  # fmt: skip
+    p_scan.add_argument(
+        "--out", metavar="PATH",
+        help="PNG file (a name ending in .png, replaced if it exists), or a folder for a new "
+        "laser_scan_<vehicle>_t<T>.png (default: the scenario's results folder, "
+        "outputs.directory; a name already taken gets a number)",
+    )  # fmt: skip
     p_scan.set_defaults(func=_cmd_scan)
     p_val = sub.add_parser("validate", help="check a scenario file without running it")
-    p_val.add_argument("scenario")
+    p_val.add_argument(
+        "scenario", help="scenario YAML: checked against its files and network, with warnings "
+        "about signal phases and sensing",
+    )  # fmt: skip
     p_val.set_defaults(func=_cmd_validate)
     p_rep = sub.add_parser("report", help="figures and report.md of a results folder")
     p_rep.add_argument("results", help="results folder of a finished run")

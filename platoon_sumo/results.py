@@ -25,6 +25,8 @@ from platoon_sumo.errors import PlatoonSumoError
 MANIFEST = "manifest.json"
 TOOL = "platoon-sumo"
 RUNNING, COMPLETE, FAILED, INTERRUPTED = "running", "complete", "failed", "interrupted"
+#: A run folder made for a file beside the results (`add_file`) before any run wrote it.
+NO_RUN = "no run"
 #: Kinds of folder we write.
 KINDS = ("run", "report", "comparison", "study")
 
@@ -84,6 +86,37 @@ def claim(
         _prune(file.parent, stop=folder)
     _write_manifest(folder, kind, RUNNING, {})
     return OwnedFolder(folder, kind, foreign)
+
+
+def add_file(folder: str | Path, name: str) -> Path:
+    """A new, empty file for one more picture beside a run's results (a laser scan):
+    never one that exists (`name` gets `_2`, `_3`, ... when taken), never deleting a file.
+
+    `folder` is created if needed; a new or empty one gets a run manifest with status
+    NO_RUN, so that a later run still claims it, which then keeps the file as one not
+    listed. A folder of the user's (no manifest) just gets the file; a report,
+    comparison or study folder is refused, since replacing those removes every file."""
+    folder = Path(folder)
+    manifest = read_manifest(folder) if folder.is_dir() else None
+    if manifest is not None and manifest["kind"] != "run":
+        raise FolderError(
+            f"{folder}: holds a {TOOL} {manifest['kind']}; nothing was written (choose "
+            "the run's folder or another one)"
+        )
+    if manifest is None and not (folder.is_dir() and any(folder.iterdir())):
+        _open(folder)
+        _write_manifest(folder, "run", NO_RUN, {})
+    stem, suffix = Path(name).stem, Path(name).suffix
+    for n in range(1, 10_000):
+        path = folder / (name if n == 1 else f"{stem}_{n}{suffix}")
+        try:
+            path.open("xb").close()
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise FolderError(f"{folder}: cannot write {path.name}: {exc.strerror}") from None
+        return path
+    raise FolderError(f"{folder}: {name} and 9998 numbered copies exist; nothing was written")
 
 
 @dataclass
@@ -168,6 +201,7 @@ def check_finished_run(folder: str | Path) -> list[str]:
             RUNNING: "the run never finished (killed?)",
             FAILED: "the run failed (see FAILED.txt)",
             INTERRUPTED: "the run was interrupted (see FAILED.txt)",
+            NO_RUN: "no run wrote here yet (only pictures were added, e.g. a scan)",
         }.get(str(status), f"the run's status is {status!r}")
         raise FolderError(f"{folder}: {why}; its tables are incomplete")
     warnings = []

@@ -97,6 +97,13 @@ def load_plan(
     return prepare(source)
 
 
+def results_directory(plan: RunPlan) -> Path:
+    """The plan's results folder: `outputs.directory`, default `results/<name>`, relative
+    to the working directory."""
+    sc = plan.scenario
+    return Path(sc.outputs.directory or Path("results") / sc.name)
+
+
 def run(
     plan: RunPlan,
     out_dir: str | Path | None = None,
@@ -110,7 +117,7 @@ def run(
     reason and its traceback) and its manifest saying so. `live_view` runs it in
     sumo-gui with the live view drawn (the same results, slower)."""
     sc = plan.scenario
-    directory = Path(out_dir or sc.outputs.directory or Path("results") / sc.name).resolve()
+    directory = Path(out_dir or results_directory(plan)).resolve()
     folder = claim(directory, "run", OUTPUT_NAMES, force)
     try:
         (directory / "scenario.yaml").write_text(
