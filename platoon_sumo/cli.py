@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 import platoon_sumo
-from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated
+from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated, UsageError
 from platoon_sumo.results import FolderError
 
 if TYPE_CHECKING:
@@ -356,7 +356,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
         return int(args.func(args))
-    except (ScenarioError, FolderError) as exc:
+    except (ScenarioError, FolderError, UsageError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except PlatoonSumoError as exc:

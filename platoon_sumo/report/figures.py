@@ -49,6 +49,23 @@ def _save(fig: Any, path: Path) -> Path:
     return path
 
 
+def draw_network(ax: Any, net_file: Path | None) -> Any:
+    """The network's lanes (lines) and junctions (filled) on `ax`, below everything else;
+    returns the lanes' LineCollection (None, and nothing drawn, without the net file)."""
+    if net_file is None or not net_file.is_file():
+        return None
+    import sumolib
+    from matplotlib.collections import LineCollection
+
+    net = sumolib.net.readNet(str(net_file), withInternal=True)
+    shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
+    lanes = ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
+    junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
+    for shape in junctions:
+        ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
+    return lanes
+
+
 def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
     """Every platoon vehicle's path over the lanes of the network (sumolib shapes)."""
     plt = _plt()
@@ -56,16 +73,7 @@ def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
     x0, x1 = traj["x_m"].min(), traj["x_m"].max()
     y0, y1 = traj["y_m"].min(), traj["y_m"].max()
     pad = max(30.0, 0.08 * max(x1 - x0, y1 - y0))
-    if net_file is not None and net_file.is_file():
-        import sumolib
-        from matplotlib.collections import LineCollection
-
-        net = sumolib.net.readNet(str(net_file), withInternal=True)
-        shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
-        ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
-        junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
-        for shape in junctions:
-            ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
+    draw_network(ax, net_file)
     platoons = sorted(traj["platoon_id"].unique())
     for pid in platoons:
         members = _members(traj[traj["platoon_id"] == pid])
