@@ -139,7 +139,7 @@ def _append_arrays(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
     with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf:
         for name, array in arrays.items():
             with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.ascontiguousarray(array), allow_pickle=False)
+                np.lib.format.write_array(f, array, allow_pickle=False)
 
 
 @dataclass(frozen=True)
@@ -182,7 +182,7 @@ def read_scene(directory: Path) -> Scene:
     scans_path = directory / SCANS_FILE
     if scans_path.is_file():
         with np.load(scans_path) as data:
-            meta = json.loads(str(data["lasers"]))
+            meta = json.loads(data["lasers"].item())
             chunks: dict[tuple[str, int], list[tuple[int, NDArray[Any]]]] = {}
             for name in data.files:
                 match = _MEMBER.fullmatch(name)
