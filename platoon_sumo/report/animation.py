@@ -431,9 +431,10 @@ class _Gif:
         self._frames = []
 
 
-def progress_line(stream: Any = sys.stderr) -> Progress:
-    """Progress of a render on `stream`: one line rewritten on a terminal, else a line
-    every 10 %."""
+def progress_line(stream: Any = None) -> Progress:
+    """Progress of a render on `stream` (default: stderr): one line rewritten on a
+    terminal, else a line every 10 %."""
+    stream = stream if stream is not None else sys.stderr
     tty = stream.isatty()
     last = [-1]
 
