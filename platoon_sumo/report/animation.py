@@ -346,6 +346,8 @@ def animate(
         raise UsageError(f"--size {width_px}x{height_px}: expected even numbers >= 16 (H.264)")
     if not (fps > 0 and math.isfinite(fps)):
         raise UsageError(f"--fps {fps}: expected a number > 0")
+    if not (window_m > 0 and math.isfinite(window_m)):
+        raise UsageError(f"--window {window_m}: expected a width > 0 m")
     timeline = Timeline(scene.traffic)
     first, last = timeline.span_s(vehicle_id)
     start_s = first if start_s is None else start_s

@@ -4,6 +4,7 @@ report's filmstrip."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 from pathlib import Path
@@ -16,8 +17,10 @@ from PIL import Image
 
 from platoon_sumo import scene_recorder
 from platoon_sumo.cli import main
+from platoon_sumo.report import animation
 from platoon_sumo.report.animation import Timeline
-from platoon_sumo.runner import load_plan, run
+from platoon_sumo.runner import run
+from platoon_sumo.scenario import ScenarioSource, load_scenario, prepare
 from platoon_sumo.scene_recorder import read_scene
 from tests.helpers import REPO
 
@@ -25,21 +28,28 @@ END_S = 70.0  # the platoon departs at 40 s
 FLUSH_FRAMES = 7  # several chunks in scans.npz, so reading them back is tested
 
 
+#: Inside the loop's reach (the 30 m laser plus vehicle sizes), so the radius filters.
+RADIUS_M = 20.0
+PERIOD_S = 0.3
+
+
 @pytest.fixture(scope="module")
 def results(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("urban_platoon_animation")
+    source = load_scenario(REPO / "scenarios" / "urban_platoon.yaml")
+    sc = source.scenario
+    sc = dataclasses.replace(
+        sc, simulation=dataclasses.replace(sc.simulation, end_s=END_S),
+        outputs=dataclasses.replace(sc.outputs, scene_radius_m=RADIUS_M,
+                                    scene_period_s=PERIOD_S),
+    )  # fmt: skip
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(scene_recorder, "FLUSH_FRAMES", FLUSH_FRAMES)
-        run(load_plan(REPO / "scenarios" / "urban_platoon.yaml", end_s=END_S), out_dir=out)
+        run(prepare(ScenarioSource(sc, source.path, source.text)), out_dir=out)
     return out
 
 
-def _outputs(results: Path):
-    return load_plan(results / "scenario.yaml").scenario.outputs
-
-
 def test_scene_rows_are_near_a_platoon_vehicle_at_the_scene_rate(results):
-    out = _outputs(results)
     scene = pd.read_csv(results / "scene.csv")
     assert len(scene) and scene["platoon_id"].isna().any(), "no traffic recorded"
     for t, rows in scene.groupby("time_s"):
@@ -47,8 +57,8 @@ def test_scene_rows_are_near_a_platoon_vehicle_at_the_scene_rate(results):
         assert len(ours), t
         d = np.hypot(rows["x_m"].to_numpy()[:, None] - ours["x_m"].to_numpy()[None, :],
                      rows["y_m"].to_numpy()[:, None] - ours["y_m"].to_numpy()[None, :])  # fmt: skip
-        assert d.min(axis=1).max() <= out.scene_radius_m + 1e-6, t
-    steps = np.diff(np.unique(scene["time_s"])) / out.scene_period_s
+        assert d.min(axis=1).max() <= RADIUS_M + 1e-6, t
+    steps = np.diff(np.unique(scene["time_s"])) / PERIOD_S
     assert steps.min() == pytest.approx(1.0)
     assert np.allclose(steps, np.round(steps)), "times off the scene period"
 
@@ -96,8 +106,8 @@ def _assert_moving_frames(frames: list[np.ndarray], count: int, size: tuple[int,
 
 def test_animate_writes_an_mp4_that_decodes(results, tmp_path, capsys):
     video, fps, size, start, end = tmp_path / "a.mp4", 8, (320, 240), 50.0, 53.0
-    assert main(["animate", str(results), "--from", str(start), "--to", str(end),
-                 "--fps", str(fps), "--size", f"{size[0]}x{size[1]}", "--out", str(video)]) == 0  # fmt: skip
+    assert main(["animate", str(results), "--from", str(start), "--to", str(end), "--fps",
+                 str(fps), "--size", f"{size[0]}x{size[1]}", "--out", str(video)]) == 0  # fmt: skip
     meta, frames = _decode_mp4(video)
     assert meta["codec"] == "h264"
     _assert_moving_frames(frames, round((end - start) * fps), size)
@@ -116,6 +126,14 @@ def test_animate_writes_a_gif_for_a_gif_name(results, tmp_path):
             gif.seek(k)
             frames.append(np.asarray(gif.convert("RGB")))
     _assert_moving_frames(frames, round((end - start) * fps), size)
+
+
+def test_without_ffmpeg_animate_falls_back_to_a_gif(results, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(animation, "ffmpeg_exe", lambda: None)
+    assert main(["animate", str(results), "--from", "60", "--to", "60.5", "--size", "96x64",
+                 "--out", str(tmp_path / "a.mp4"), "--quiet"]) == 0  # fmt: skip
+    assert (tmp_path / "a.gif").is_file() and not (tmp_path / "a.mp4").exists()
+    assert "writing a GIF" in capsys.readouterr().err
 
 
 def test_a_folder_without_scene_is_one_error_line(results, tmp_path, capsys):
