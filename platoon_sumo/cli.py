@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, TextIO
 import numpy as np
 
 import platoon_sumo
-from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated
+from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated, UsageError
 from platoon_sumo.results import FolderError
 
 if TYPE_CHECKING:
@@ -285,6 +285,28 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, got {text!r}") from None
+    return width, height
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from platoon_sumo.report.animation import animate, progress_line
+
+    done = animate(
+        args.results, args.out, args.vehicle, args.start_s, args.end_s, args.fps, args.size,
+        args.window, None if args.quiet else progress_line(), warn=_warn,
+    )  # fmt: skip
+    print(
+        f"animation written to {done.path} ({done.frames} frames, "
+        f"{done.frames / max(done.render_s, 1e-9):.1f} frames/s)"
+    )
+    return 0
+
+
 def _cmd_compare(args: argparse.Namespace) -> int:
     from platoon_sumo.report import write_comparison
 
@@ -392,6 +414,26 @@ def build_parser() -> argparse.ArgumentParser:
     p_rep.add_argument("results", help="results folder of a finished run")
     p_rep.add_argument("--out", help="folder for the report (default: RESULTS/report)")
     p_rep.set_defaults(func=_cmd_report)
+    p_ani = sub.add_parser(
+        "animate", help="a video (MP4, or GIF) of a finished run following one vehicle"
+    )
+    p_ani.add_argument("results", help="results folder of a finished run")
+    add = p_ani.add_argument
+    add("--vehicle", help="platoon vehicle to follow and whose laser to draw "
+        "(default: the first follower with a laser)")  # fmt: skip
+    add("--from", dest="start_s", type=float,
+        help="simulation time of the first frame [s] (default: the vehicle's first)")  # fmt: skip
+    add("--to", dest="end_s", type=float,
+        help="simulation time the video ends at [s] (default: the vehicle's last)")  # fmt: skip
+    add("--out", help="video file, .mp4 or .gif (default: RESULTS/animation.mp4)")
+    add("--fps", type=float, default=10.0,
+        help="frames per second; a simulated second lasts a second (default: 10)")  # fmt: skip
+    add("--size", type=_size, default=(800, 600),
+        help="frame size WIDTHxHEIGHT in pixels, even numbers (default: 800x600)")  # fmt: skip
+    add("--window", type=float, default=120.0,
+        help="width of the view around the vehicle [m] (default: 120)")  # fmt: skip
+    p_ani.add_argument("--quiet", action="store_true", help="no progress line")
+    p_ani.set_defaults(func=_cmd_animate)
     p_cmp = sub.add_parser("compare", help="several runs' summaries and figures side by side")
     p_cmp.add_argument("results", nargs="+", help="results folders of finished runs")
     p_cmp.add_argument("--out", default="comparison", help="folder to write (default: comparison)")
@@ -429,7 +471,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
         return int(args.func(args))
-    except (ScenarioError, FolderError) as exc:
+    except (ScenarioError, FolderError, UsageError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except PlatoonSumoError as exc:

@@ -29,6 +29,11 @@ class Terminated(KeyboardInterrupt):
     ends as on Ctrl-C: what it wrote is kept and marked interrupted."""
 
 
+class UsageError(PlatoonSumoError):
+    """A command's input that cannot be used as given: a results folder without the file
+    the command needs, an argument naming nothing in it. Names the folder or argument."""
+
+
 class SumoError(PlatoonSumoError):
     """SUMO refused something (start, insertion, a move); carries SUMO's own words."""
 

@@ -20,7 +20,8 @@ from numpy.typing import NDArray
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord, VehicleRecord
 from platoon_sumo.sensors.laser import LaserScan
 
-#: One colour per platoon, in the order platoons appear (RGB; matplotlib's tab10).
+#: One colour per platoon, in platoon-id order as in the report's map and the
+#: animations (RGB; matplotlib's tab10).
 PLATOON_COLOURS = (
     (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
     (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
@@ -73,8 +74,9 @@ class LiveView(StepHook):
 
     def on_start(self, run: RunContext) -> None:
         self._traci.gui.setSchema(VIEW, "real world")  # vehicles drawn with their shapes
-        for k, platoon in enumerate(run.plan.platoons):
-            self._colours[platoon.config.id] = PLATOON_COLOURS[k % len(PLATOON_COLOURS)]
+        ids = sorted(platoon.config.id for platoon in run.plan.platoons)  # as the report's
+        for k, platoon_id in enumerate(ids):
+            self._colours[platoon_id] = PLATOON_COLOURS[k % len(PLATOON_COLOURS)]
 
     def on_step(self, record: StepRecord) -> None:
         vehicles = record.vehicles

@@ -43,6 +43,7 @@ from platoon_sumo.metrics.tables import by_id, overall, summary_tables, write_ta
 from platoon_sumo.recorder import EventWriter, ScanSnapshot, TrajectoryRecorder
 from platoon_sumo.results import COMPLETE, FAILED, INTERRUPTED, claim
 from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
+from platoon_sumo.scene_recorder import SCANS_FILE, SCENE_FILE, SceneRecorder
 from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
 from platoon_sumo.sumo.shapes import read_wall_segments
 from platoon_sumo.traffic import write_traffic_inputs
@@ -53,6 +54,7 @@ OUTPUT_NAMES = frozenset({
     "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
     "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
     EDGEDATA_FILE, PERSONINFO_FILE, "scan_snapshot.npz", "events.csv", "inputs", "report",
+    SCENE_FILE, SCANS_FILE,
 })  # fmt: skip
 
 
@@ -176,6 +178,8 @@ def _run(
     if any(m.laser is not None for p in plan.platoons for m in p.members):
         snapshot = ScanSnapshot(out.scan_snapshot_s)
         all_hooks.append(snapshot)
+    if out.scene_period_s is not None:
+        all_hooks.append(SceneRecorder(directory, out.scene_period_s, out.scene_radius_m))
     all_hooks.extend(hooks)
     if live_view is not None:
         all_hooks.append(LiveView(live_view))

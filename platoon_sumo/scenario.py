@@ -548,6 +548,13 @@ class OutputConfig:
     scan_snapshot_s: float | None = bounded(None, ge=0, le=MAX_TIME_S)
     """Keep the first follower's laser scan at this time for the report's scan figure;
     default: the scan halfway through its scans that saw its predecessor [s]."""
+    scene_period_s: float | None = bounded(0.5, gt=0, le=MAX_TIME_S)
+    """Every this long (rounded to whole steps), the vehicles near the platoons and the
+    platoon lasers' latest scans go to `scene.csv` and `scans.npz`, which
+    `platoon-sumo animate` draws [s]; null: no scene files."""
+    scene_radius_m: float = bounded(60.0, gt=0, le=10_000)
+    """The scene keeps the vehicles whose front bumper is within this distance of a
+    platoon vehicle's (at most those the loop reads: within the sensors' reach) [m]."""
     gridlock_after_s: float | None = bounded(300.0, gt=0, le=MAX_TIME_S)
     """A vehicle (any, SUMO's or ours) standing still this long, neither at a stop of its
     schedule nor queued within 250 m of a red light, is reported as gridlocked (a

@@ -17,7 +17,7 @@ from typing import Any
 import pandas as pd
 
 from platoon_sumo.errors import PlatoonSumoError
-from platoon_sumo.report import figures
+from platoon_sumo.report import animation, figures
 from platoon_sumo.results import COMPLETE, FAILED, check_finished_run, claim
 
 __all__ = ["ReportError", "load_results", "write_comparison", "write_report"]
@@ -172,6 +172,9 @@ def _write_report(
     else:
         scan_note = ("\nNo laser-scan figure: no platoon vehicle in this run carries a sensor, "
                      "so there is no scan to draw (`scan_snapshot.npz` is absent).\n")  # fmt: skip
+    strip = animation.filmstrip(directory, summary, traj, out_dir / "filmstrip.png")
+    if strip is not None:
+        figs.append(("Key moments (frames as `animate` draws them)", strip))
     if not len(traj):
         scan_note += ("\nNo platoon vehicle drove in this run (none departed, or the run "
                       "had no platoons), so there are no platoon figures.\n")  # fmt: skip

@@ -68,6 +68,23 @@ def platoon_colors(traj: pd.DataFrame) -> dict[str, dict[str, Any]]:
     return colors
 
 
+def draw_network(ax: Any, net_file: Path | None) -> Any:
+    """The network's lanes (lines) and junctions (filled) on `ax`, below everything else;
+    returns the lanes' LineCollection (None, and nothing drawn, without the net file)."""
+    if net_file is None or not net_file.is_file():
+        return None
+    import sumolib
+    from matplotlib.collections import LineCollection
+
+    net = sumolib.net.readNet(str(net_file), withInternal=True)
+    shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
+    lanes = ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
+    junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
+    for shape in junctions:
+        ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
+    return lanes
+
+
 def network_map(traj: pd.DataFrame, net_file: Path | None, path: Path) -> Path:
     """Every platoon vehicle's path over the lanes of the network (sumolib shapes)."""
     fig = network_map_figure(traj, net_file)
@@ -86,8 +103,7 @@ def network_map_figure(traj: pd.DataFrame, net_file: Path | None) -> Any:
     x0, x1 = traj["x_m"].min(), traj["x_m"].max()
     y0, y1 = traj["y_m"].min(), traj["y_m"].max()
     pad = max(30.0, 0.08 * max(x1 - x0, y1 - y0))
-    if net_file is not None and net_file.is_file():
-        _draw_network(ax, net_file)
+    draw_network(ax, net_file)
     handles = []
     for pid, colors in platoon_colors(traj).items():
         members = _members(traj[traj["platoon_id"].astype(str) == pid])
@@ -116,19 +132,6 @@ def network_map_figure(traj: pd.DataFrame, net_file: Path | None) -> Any:
                   ncol=min(3, 1 + len(handles) // 6))  # fmt: skip
     ax.grid(True, alpha=0.3)
     return fig
-
-
-def _draw_network(ax: Any, net_file: Path) -> None:
-    """Lanes as grey lines and junctions as pale areas (sumolib shapes)."""
-    import sumolib
-    from matplotlib.collections import LineCollection
-
-    net = sumolib.net.readNet(str(net_file), withInternal=True)
-    shapes = [lane.getShape() for edge in net.getEdges() for lane in edge.getLanes()]
-    ax.add_collection(LineCollection(shapes, colors="0.8", linewidths=1.0, zorder=1))
-    junctions = [n.getShape() for n in net.getNodes() if len(n.getShape()) >= 3]
-    for shape in junctions:
-        ax.fill(*zip(*shape, strict=True), color="0.93", zorder=0)
 
 
 def spacing_and_speed(traj: pd.DataFrame, platoon_id: str, path: Path) -> Path:

@@ -1,0 +1,200 @@
+"""The scene of a run, for animations: the traffic around the platoons and their scans.
+
+The trajectory table has only the platoon vehicles; drawing a run afterwards also needs
+the SUMO vehicles around them and what the lasers saw. `SceneRecorder` keeps both at a
+lower rate than the step (`outputs.scene_period_s`) and only near the platoons
+(`outputs.scene_radius_m`), so the files stay small (docs/outputs.md):
+
+- `scene.csv`: one row per vehicle within the radius of a platoon vehicle (platoon
+  vehicles included) per scene time;
+- `scans.npz`: every platoon laser's latest scan at each scene time, ranges as float16
+  (REP 117's inf and NaN kept), appended in chunks (numpy arrays in one zip file) so
+  memory stays bounded whatever the run's length.
+
+`read_scene` reads both back.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from platoon_sumo.errors import UsageError
+from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord
+
+SCENE_FILE = "scene.csv"
+SCANS_FILE = "scans.npz"
+SCENE_COLUMNS = (
+    "time_s", "vehicle_id", "platoon_id", "member_index", "x_m", "y_m", "yaw_rad",
+    "length_m", "width_m", "speed_mps",
+)  # fmt: skip
+#: Columns of a scan's pose array in `scans.npz`.
+POSE_COLUMNS = ("time_s", "stamp_s", "origin_x_m", "origin_y_m", "heading_rad")
+#: Scene times buffered before they are appended to the files.
+FLUSH_FRAMES = 120
+_MEMBER = re.compile(r"(ranges|poses)_(\d+)_(\d+)")
+
+
+class SceneRecorder(StepHook):
+    """Writes `scene.csv` and `scans.npz` in `directory` every `period_s` (rounded to
+    whole steps, at least one), from the first step with a platoon vehicle in the
+    network, keeping the vehicles whose front bumper is within `radius_m` of a platoon
+    vehicle's. The world the loop reads holds only vehicles within the sensors' reach of
+    the platoons (docs/design.md, ObserveWorld), so a radius beyond it adds nothing."""
+
+    def __init__(self, directory: Path, period_s: float, radius_m: float):
+        self.scene_path = directory / SCENE_FILE
+        self.scans_path = directory / SCANS_FILE
+        self.period_s = period_s
+        self.radius_m = radius_m
+        self._every_steps = 1
+        self._step = 0
+        self._rows: list[tuple[Any, ...]] = []
+        self._frames = 0
+        self._chunk = 0
+        self._lasers: dict[str, int] = {}
+        self._meta: list[dict[str, Any]] = []
+        self._poses: dict[int, list[tuple[float, ...]]] = {}
+        self._ranges: dict[int, list[NDArray[np.float16]]] = {}
+
+    def on_start(self, run: RunContext) -> None:
+        self._every_steps = max(1, round(self.period_s / run.dt_s))
+        with self.scene_path.open("w", newline="") as f:
+            csv.writer(f).writerow(SCENE_COLUMNS)
+
+    def on_step(self, record: StepRecord) -> None:
+        self._step += 1
+        if self._step % self._every_steps or not record.vehicles:
+            return
+        world, time_s = record.world, round(record.time_s, 6)
+        ours = {v.id: v for v in record.vehicles}
+        px = np.array([v.front_x_m for v in record.vehicles])
+        py = np.array([v.front_y_m for v in record.vehicles])
+        dx = world.front_x_m[:, None] - px[None, :]
+        dy = world.front_y_m[:, None] - py[None, :]
+        near = np.hypot(dx, dy).min(axis=1, initial=np.inf) <= self.radius_m
+        for i in np.flatnonzero(near):
+            vid = world.ids[i]
+            member = ours.get(vid)
+            self._rows.append((
+                time_s, vid, member.platoon_id if member else None,
+                member.index if member else None, round(float(world.front_x_m[i]), 3),
+                round(float(world.front_y_m[i]), 3), round(float(world.yaw_rad[i]), 4),
+                float(world.length_m[i]), float(world.width_m[i]),
+                round(float(world.speed_mps[i]), 3),
+            ))  # fmt: skip
+        for v in record.vehicles:
+            scan = v.scan
+            if scan is None:
+                continue
+            k = self._lasers.get(v.id)
+            if k is None:
+                k = self._lasers[v.id] = len(self._meta)
+                self._meta.append({
+                    "vehicle_id": v.id, "platoon_id": v.platoon_id, "member_index": v.index,
+                    "angle_min": scan.angle_min, "angle_increment": scan.angle_increment,
+                    "range_min": scan.range_min, "range_max": scan.range_max,
+                })  # fmt: skip
+            pose = (time_s, scan.stamp_s, scan.origin_x_m, scan.origin_y_m, scan.heading_rad)
+            self._poses.setdefault(k, []).append(pose)
+            self._ranges.setdefault(k, []).append(scan.ranges.astype(np.float16))
+        self._frames += 1
+        if self._frames >= FLUSH_FRAMES:
+            self.flush()
+
+    def flush(self) -> None:
+        """Append the buffered scene times to both files."""
+        if self._rows:
+            with self.scene_path.open("a", newline="") as f:
+                csv.writer(f).writerows(self._rows)
+        if self._poses:
+            arrays: dict[str, NDArray[Any]] = {}
+            for k, poses in self._poses.items():
+                arrays[f"poses_{k}_{self._chunk}"] = np.array(poses, dtype=np.float64)
+                arrays[f"ranges_{k}_{self._chunk}"] = np.stack(self._ranges[k])
+            _append_arrays(self.scans_path, arrays)
+        self._rows.clear()
+        self._poses.clear()
+        self._ranges.clear()
+        self._frames = 0
+        self._chunk += 1
+
+    def on_end(self, outcome: RunOutcome) -> None:
+        self.flush()
+        if self._meta:
+            _append_arrays(self.scans_path, {"lasers": np.array(json.dumps(self._meta))})
+
+
+def _append_arrays(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
+    """Add arrays as `.npy` members of the zip file `path` (numpy's .npz layout)."""
+    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, array in arrays.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, array, allow_pickle=False)
+
+
+@dataclass(frozen=True)
+class ScanSeries:
+    """One platoon laser's scans at the scene times (docs/outputs.md, `scans.npz`)."""
+
+    vehicle_id: str
+    platoon_id: str
+    member_index: int
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    poses: NDArray[np.float64]
+    """(n, 5): `POSE_COLUMNS`."""
+    ranges_m: NDArray[np.float32]
+    """(n, rays), REP 117: +inf nothing within range, -inf closer than range_min, NaN
+    a dropout."""
+
+
+@dataclass(frozen=True)
+class Scene:
+    traffic: pd.DataFrame
+    """`scene.csv`: every vehicle near the platoons per scene time."""
+    scans: dict[str, ScanSeries]
+    """By vehicle id; empty when no platoon vehicle has a laser."""
+
+
+def read_scene(directory: Path) -> Scene:
+    """The scene files of a results folder; UsageError naming the folder when it has
+    none (a run from before they were written, or with `outputs.scene_period_s: null`)."""
+    scene_path = directory / SCENE_FILE
+    if not scene_path.is_file():
+        raise UsageError(
+            f"{directory}: no {SCENE_FILE} (the run is older than scene recording, or ran "
+            "with outputs.scene_period_s: null); run the scenario again to animate it"
+        )
+    traffic = pd.read_csv(scene_path, dtype={"vehicle_id": str, "platoon_id": str})
+    scans: dict[str, ScanSeries] = {}
+    scans_path = directory / SCANS_FILE
+    if scans_path.is_file():
+        with np.load(scans_path) as data:
+            meta = json.loads(data["lasers"].item())
+            chunks: dict[tuple[str, int], list[tuple[int, NDArray[Any]]]] = {}
+            for name in data.files:
+                match = _MEMBER.fullmatch(name)
+                if match:
+                    kind, k, chunk = match[1], int(match[2]), int(match[3])
+                    chunks.setdefault((kind, k), []).append((chunk, data[name]))
+        for k, m in enumerate(meta):
+            poses, ranges = (
+                np.concatenate([a for _, a in sorted(chunks[kind, k], key=lambda c: c[0])])
+                for kind in ("poses", "ranges")
+            )
+            scans[m["vehicle_id"]] = ScanSeries(
+                **m, poses=poses, ranges_m=ranges.astype(np.float32)
+            )
+    return Scene(traffic, scans)
