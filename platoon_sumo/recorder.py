@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -280,10 +281,20 @@ def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
+@dataclass(frozen=True)
+class _Marks:
+    """The scanning vehicle and its predecessor, with their rows in the footprints."""
+
+    vehicle_id: str
+    vehicle_row: int | None
+    predecessor_id: str | None
+    predecessor_row: int | None
+
+
 class ScanSnapshot(StepHook):
-    """Keeps one laser scan for the report, with the footprints (its own excluded) and
-    wall segments it was cast against; `save` writes an .npz that `platoon_sumo.report`
-    draws with `plot_scan`.
+    """Keeps one laser scan for the report, with the footprints (its own and its
+    predecessor's marked) and wall segments it was cast against; `save` writes an .npz
+    that `platoon_sumo.report` draws with `plot_scan`.
 
     The vehicle is `vehicle_id`, else the first follower with a sensor (else any vehicle
     with one). The scan is its first one at or after `at_s`; with `at_s` None, the one
@@ -294,7 +305,7 @@ class ScanSnapshot(StepHook):
     def __init__(self, at_s: float | None = None, vehicle_id: str | None = None):
         self.at_s = at_s
         self.vehicle_id = vehicle_id
-        self._kept: list[tuple[int, LaserScan, np.ndarray, str]] = []
+        self._kept: list[tuple[int, LaserScan, np.ndarray, _Marks]] = []
         self._count = 0
         self.segments: np.ndarray | None = None
         self.frozen = False
@@ -319,33 +330,39 @@ class ScanSnapshot(StepHook):
         scan = v.scan
         if scan is None or abs(scan.stamp_s - sensed.time_s) > 1e-9:
             return  # not a new scan of this step
-        own = sensed.index.get(v.id)
-        rects = np.delete(rects_seen, own, axis=0) if own is not None else rects_seen
+        pred = v.predecessor_id
+        marks = _Marks(v.id, sensed.index.get(v.id), pred, sensed.index.get(pred or ""))
+        rects = rects_seen
         if self.at_s is not None:
-            self._kept = [(0, scan, rects, v.id)]
+            self._kept = [(0, scan, rects, marks)]
             self.frozen = record.time_s >= self.at_s
             return
         if not v.predecessor_rays:
             return
         self._count += 1
         if self._count & (self._count - 1) == 0:  # a power of two
-            self._kept = [*self._kept[-1:], (self._count, scan, rects, v.id)]
+            self._kept = [*self._kept[-1:], (self._count, scan, rects, marks)]
 
-    def chosen(self) -> tuple[LaserScan, np.ndarray, str] | None:
+    def chosen(self) -> tuple[LaserScan, np.ndarray, _Marks] | None:
         if not self._kept:
             return None
         middle = self._count / 2
-        _, scan, rects, vid = min(self._kept, key=lambda k: abs(k[0] - middle))
-        return scan, rects, vid
+        _, scan, rects, marks = min(self._kept, key=lambda k: abs(k[0] - middle))
+        return scan, rects, marks
 
     def save(self, path: Path) -> Path | None:
         """Write the scan and the obstacles within its range; None if no scan was kept."""
         chosen = self.chosen()
         if chosen is None:
             return None
-        scan, rects, vid = chosen
+        scan, rects, marks = chosen
         reach = scan.range_max + 10.0
         near = np.hypot(rects[:, 0] - scan.origin_x_m, rects[:, 1] - scan.origin_y_m) < reach
+        kept_row = np.cumsum(near) - 1  # a row's index among the rows kept
+
+        def row(i: int | None) -> int | None:
+            return int(kept_row[i]) if i is not None and near[i] else None
+
         segs = self.segments if self.segments is not None else np.zeros((0, 4))
         if len(segs):
             mid_x, mid_y = (segs[:, 0] + segs[:, 2]) / 2, (segs[:, 1] + segs[:, 3]) / 2
@@ -355,7 +372,10 @@ class ScanSnapshot(StepHook):
                   "range_min", "range_max", "origin_x_m", "origin_y_m", "heading_rad",
                   "stamp_s")  # fmt: skip
         meta: dict[str, Any] = {k: getattr(scan, k) for k in fields}
-        meta["vehicle_id"] = vid
+        meta["vehicle_id"] = marks.vehicle_id
+        meta["scanner_row"] = row(marks.vehicle_row)
+        meta["predecessor_id"] = marks.predecessor_id
+        meta["predecessor_row"] = row(marks.predecessor_row)
         with path.open("wb") as f:
             np.savez_compressed(
                 f, ranges=scan.ranges, rectangles=rects[near], segments=segs,

@@ -249,10 +249,20 @@ def scan_snapshot(npz: Path, path: Path) -> Path | None:
     with np.load(npz) as data:
         meta = json.loads(str(data["meta"]))
         vid = meta.pop("vehicle_id")
+        own, pred_id, pred = (meta.pop(k, None) for k in SNAPSHOT_MARKS)  # older runs: absent
         scan = LaserScan(ranges=data["ranges"], **meta)
         rects, segs = data["rectangles"], data["segments"]
     title = f"Laser scan of {vid} at t = {scan.stamp_s:.1f} s (obstacles as cast)"
-    return Path(plot_scan(scan, rects, segs if len(segs) else None, path, title=title))
+    scanner = (own, vid) if own is not None else None
+    predecessor = (pred, pred_id) if pred is not None and pred_id is not None else None
+    return Path(
+        plot_scan(scan, rects, segs if len(segs) else None, path, title=title,
+                  scanner=scanner, predecessor=predecessor)
+    )  # fmt: skip
+
+
+#: Keys of `scan_snapshot.npz`'s meta that mark the scanning car and its predecessor.
+SNAPSHOT_MARKS = ("scanner_row", "predecessor_id", "predecessor_row")
 
 
 def compare_bars(table: pd.DataFrame, metrics: Sequence[tuple[str, str]], path: Path) -> Path:

@@ -3,6 +3,7 @@ figures and report.md; `compare` writes the side-by-side table and overlays."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import matplotlib.image as mpimg
@@ -43,6 +44,23 @@ def test_report_writes_figures_and_markdown(results, capsys):
         assert f"]({name})" in text
     assert "| min gap [m] |" in text and "## Vehicles" in text
     assert "report.md" in capsys.readouterr().out
+
+
+def test_scan_snapshot_marks_the_scanning_car_and_its_predecessor(results):
+    """The report's scan shows the car the sensor sits on and the car it follows: their
+    rows in the saved footprints are the ones at the sensor and at the predecessor."""
+    with np.load(results / "scan_snapshot.npz") as data:
+        meta = json.loads(str(data["meta"]))
+        rects = data["rectangles"]
+    own, pred = rects[meta["scanner_row"]], rects[meta["predecessor_row"]]
+    vid = meta["vehicle_id"]
+    assert meta["predecessor_id"] == f"cars.{int(vid.split('.')[1]) - 1}"
+    traj = pd.read_csv(results / "trajectories.csv")
+    at = traj[np.isclose(traj["time_s"], meta["stamp_s"])].set_index("vehicle_id")
+    # footprint rows (cx, cy, ...) are centres: half a car behind the front bumper
+    for rect, who in ((own, vid), (pred, meta["predecessor_id"])):
+        distance = np.hypot(rect[0] - at.loc[who, "x_m"], rect[1] - at.loc[who, "y_m"])
+        assert distance < 4.5, who  # within a car length of its front bumper
 
 
 def test_summary_tables_are_written(results):
