@@ -193,7 +193,8 @@ class ScanGrabber:
 
     def on_step(self, record: StepRecord) -> None:
         seen = record.sensed_world
-        for v in record.vehicles:
+        # by default a follower's scan: it shows the predecessor it follows
+        for v in sorted(record.vehicles, key=lambda v: v.predecessor_id is None):
             wanted = self.vehicle_id is None or v.id == self.vehicle_id
             scan = v.scan
             if wanted and scan is not None and seen is not None and seen.time_s == scan.stamp_s:
@@ -395,7 +396,8 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p_scan.add_argument(
         "--vehicle", metavar="ID",
-        help="which platoon vehicle's laser, e.g. cars.2 (default: the first with a laser)",
+        help="which platoon vehicle's laser, e.g. cars.2 (default: the first follower "
+        "with a laser, else the first vehicle with one)",
     )  # fmt: skip
     p_scan.add_argument(
         "--out", metavar="PATH",

@@ -68,6 +68,14 @@ def test_scan_out_is_a_folder_or_a_png_file(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scans"]
 
 
+def test_scan_draws_a_followers_laser_by_default(tmp_path):
+    """The leader has a laser too, but a follower's scan is the one that shows the car
+    it follows: without --vehicle the first follower's is drawn."""
+    assert main(["scan", str(URBAN_PLATOON), "--at", str(AT_S), "--out", str(tmp_path)]) == 0
+    (name,) = scan_names(tmp_path)
+    assert name.startswith("laser_scan_cars.1_t")
+
+
 # -- where a new file goes ----------------------------------------------------------------
 
 
