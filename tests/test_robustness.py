@@ -15,6 +15,8 @@ import pytest
 
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 TOOL = REPO / "tools" / "robustness.py"
 #: In corpus order (shipped networks first), the order of the table.
 NETWORKS = ("cross", "grid4_priority")

@@ -38,6 +38,7 @@ def assert_scan_png(path: Path) -> None:
 # -- the command, on the urban platoon shortly after it departs ----------------------------
 
 
+@pytest.mark.slow
 def test_scan_goes_into_the_results_folder_beside_the_users_files(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     results = tmp_path / "results" / URBAN_PLATOON.stem  # its outputs.directory
@@ -53,6 +54,7 @@ def test_scan_goes_into_the_results_folder_beside_the_users_files(tmp_path, monk
     assert VEHICLE in out and name in out
 
 
+@pytest.mark.slow
 def test_scan_out_is_a_folder_or_a_png_file(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     folder = tmp_path / "scans"
@@ -68,6 +70,7 @@ def test_scan_out_is_a_folder_or_a_png_file(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scans"]
 
 
+@pytest.mark.slow
 def test_scan_draws_a_followers_laser_by_default(tmp_path):
     """The leader has a laser too, but a follower's scan is the one that shows the car
     it follows: without --vehicle the first follower's is drawn."""

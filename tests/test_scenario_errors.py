@@ -992,6 +992,7 @@ def test_route_file_that_is_fine_validates(
     sorted((ROOT / "scenarios").rglob("*.yaml")),
     ids=lambda p: str(p.relative_to(ROOT / "scenarios").with_suffix("")),
 )
+@pytest.mark.slow
 def test_shipped_scenarios_validate(scenario: Path, capfd: pytest.CaptureFixture[str]) -> None:
     code = main(["validate", str(scenario)])
     _, err = capfd.readouterr()

@@ -20,6 +20,8 @@ import pytest
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 WARM_UP_S = 30.0
 
 

@@ -267,6 +267,7 @@ def open_loop(lead_rects, me: Vehicle, steps=15, dt=0.1, params=None, segments=N
     return ctrl, cmd
 
 
+@pytest.mark.slow
 def test_predecessor_straight_ahead_is_tracked_and_followed():
     me = car(0.0, v=10.0)
     lead = car(CAR_FRONT + 12.0 + (CAR_LEN - CAR_FRONT), v=10.0)  # rear 12 m ahead of bumper

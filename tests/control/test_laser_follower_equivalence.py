@@ -92,6 +92,7 @@ def test_the_recorded_logs_are_there_and_small():
     assert all(path.stat().st_size < 2_000_000 for path in LOGS.values())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(LOGS))
 def test_recorded_runs_replay_identically(name):
     """Each recorded follower with its recorded parameters (in the city, the last

@@ -9,6 +9,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -85,6 +86,7 @@ def assert_same_candidates(got: list, want: list) -> None:
     hint=st.floats(-math.pi, math.pi),
     roi=st.one_of(st.none(), st.tuples(st.floats(-2, 30), st.floats(-15, 15), st.floats(0, 8))),
 )
+@pytest.mark.slow
 def test_segmentation_and_rear_detection_match_the_reference(seed, scale, hint, roi):
     scan, width, params = random_scan(seed, scale)
     a, b = new.segment_scan(scan, params), ref.segment_scan(scan, params)

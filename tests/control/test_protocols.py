@@ -19,6 +19,8 @@ import yaml
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 PROTOCOLS = sorted((REPO / "scenarios" / "protocols").glob("*.yaml"))
 NOISY_LIDAR = {"preset": "lidar_120m", "overrides": {"noise_std_m": 0.03, "dropout_prob": 0.01}}
 

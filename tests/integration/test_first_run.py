@@ -35,6 +35,7 @@ def default_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return out, stdout.getvalue()
 
 
+@pytest.mark.slow
 def test_default_scenario_is_a_laser_only_platoon_through_signals_and_turns(
     default_run: tuple[Path, str],
 ) -> None:
@@ -49,6 +50,7 @@ def test_default_scenario_is_a_laser_only_platoon_through_signals_and_turns(
         assert rows["yaw_rad"].max() - rows["yaw_rad"].min() > 1.2, vid  # a turn at least
 
 
+@pytest.mark.slow
 def test_first_run_prints_the_numbers_of_its_summary(default_run: tuple[Path, str]) -> None:
     out, printed = default_run
     summary = json.loads((out / "summary.json").read_text())
@@ -61,6 +63,7 @@ def test_first_run_prints_the_numbers_of_its_summary(default_run: tuple[Path, st
     assert "predecessor in view" in printed and "RMS spacing error" in printed
 
 
+@pytest.mark.slow
 def test_first_run_says_what_to_type_next(default_run: tuple[Path, str]) -> None:
     out, printed = default_run
     for command in ("report", "animate"):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
@@ -87,6 +88,7 @@ def test_sumo_car_brakes_for_stopped_platoon_vehicle(write_scenario, tmp_path):
     assert gaps.min() >= 2.5 - 1e-6
 
 
+@pytest.mark.slow
 def test_same_scenario_and_seed_give_identical_outputs(write_scenario, tmp_path):
     scenario = write_scenario(
         {

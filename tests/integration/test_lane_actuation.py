@@ -18,6 +18,8 @@ from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO, URBAN_GRID_NET
 from tests.integration.test_urban_grid import signalised_junctions_crossed
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 
 def _urban_platoon(**platoon_changes: Any) -> dict[str, Any]:
     scenario = yaml.safe_load((REPO / "scenarios" / "urban_platoon.yaml").read_text())

@@ -20,6 +20,8 @@ from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 SCENARIO = REPO / "scenarios" / "urban_platoon.yaml"
 END_S = 55.0  # the platoon departs at 40 s: a few seconds of five cars and their scans
 

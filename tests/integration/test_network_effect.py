@@ -5,10 +5,13 @@ from __future__ import annotations
 import json
 
 import pandas as pd
+import pytest
 
 from platoon_sumo.cli import main
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import URBAN_GRID_NET
+
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
 
 
 def test_human_travel_times_with_and_without_the_platoons(write_scenario, tmp_path):

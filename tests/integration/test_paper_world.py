@@ -12,6 +12,8 @@ from platoon_sumo.runner import load_plan, run
 from platoon_sumo.sumo.network import Network
 from tests.helpers import PAPER_WORLD, REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 LOOP = ["SW_S", "S_SE", "SE_NE", "NE_N", "N_NW", "NW_SW"]
 
 

@@ -6,6 +6,7 @@ import json
 
 import libsumo
 import pandas as pd
+import pytest
 
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
@@ -138,6 +139,7 @@ def test_platoons_on_one_route_are_inserted_whole_when_there_is_room(write_scena
     assert summary["platoons_not_inserted"] == ["late"]
 
 
+@pytest.mark.slow
 def test_platoon_share_turns_part_of_a_flow_into_platoons(write_scenario, tmp_path):
     scenario = {
         "simulation": {"step_s": 0.1, "end_s": 300.0, "seed": 4},
@@ -181,6 +183,7 @@ def test_lane_change_waits_for_a_gap_in_the_target_lane(write_scenario, tmp_path
     assert "A0B0_1" in set(traj["lane_id"])  # and then changed lanes
 
 
+@pytest.mark.slow
 def test_platoon_longer_than_its_first_edge_departs_member_by_member(write_scenario, tmp_path):
     # 12 cars of 4.5 m with 8 m gaps need 142 m; the first edge is 89.6 m: 7 fit
     route = {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]}

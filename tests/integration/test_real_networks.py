@@ -20,6 +20,8 @@ from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 
 class TrafficCount:
     """The largest number of SUMO (human-driven) vehicles in the network at once."""

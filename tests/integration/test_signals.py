@@ -66,6 +66,7 @@ def wait_for(condition: Any, timeout_s: float = 60.0) -> None:
 @pytest.mark.parametrize(("signum", "code", "name"), [
     (signal.SIGTERM, 143, "SIGTERM"), (signal.SIGINT, 130, "Ctrl-C"),
 ])  # fmt: skip
+@pytest.mark.slow
 def test_a_signal_mid_run_keeps_the_rows_and_marks_the_run_interrupted(
     tmp_path, signum, code, name
 ):
@@ -100,6 +101,7 @@ def _processes_naming(text: str) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc to list processes")
 def test_sigterm_while_the_demand_is_made_ends_sumos_tools_too(tmp_path):
     data = {

@@ -14,6 +14,8 @@ from platoon_sumo.runner import load_plan, run
 from platoon_sumo.sumo.network import Network
 from tests.helpers import REPO, URBAN_GRID_NET
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 
 class TrafficAroundEgo:
     """Counts the SUMO vehicles in the network while the platoon vehicle drives, and

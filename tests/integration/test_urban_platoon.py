@@ -12,6 +12,8 @@ from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 from tests.integration.test_urban_grid import TrafficAroundEgo, signalised_junctions_crossed
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 
 @pytest.fixture(scope="module")
 def platoon_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, TrafficAroundEgo]:

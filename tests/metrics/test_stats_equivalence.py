@@ -22,6 +22,8 @@ from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 from tests.metrics import reference_stats
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 NUMERIC = ("speed_mps", "accel_mps2", "jerk_mps3", "gap_to_predecessor_m", "measured_gap_m",
            "desired_gap_m", "spacing_error_m", "time_gap_s", "ttc_s",
            "lateral_deviation_m")  # fmt: skip

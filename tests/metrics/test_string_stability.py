@@ -60,6 +60,7 @@ def platoon(summary: dict[str, Any]) -> dict[str, Any]:
     return p
 
 
+@pytest.mark.slow
 def test_stable_and_unstable_tunings_by_their_frequency_response(runs):
     stable, unstable = platoon(runs["stable"]), platoon(runs["unstable"])
     assert stable["string_stability_verdict"] == "stable" and stable["string_stable"] is True

@@ -24,6 +24,8 @@ from platoon_sumo.scenario import ScenarioSource, load_scenario, prepare
 from platoon_sumo.scene_recorder import read_scene
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 END_S = 70.0  # the platoon departs at 40 s
 FLUSH_FRAMES = 7  # several chunks in scans.npz, so reading them back is tested
 

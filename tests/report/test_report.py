@@ -15,6 +15,8 @@ from platoon_sumo.cli import main
 from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 END_S = 95.0  # the platoon departs at 40 s: one signalised junction and a turn
 
 

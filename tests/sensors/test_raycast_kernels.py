@@ -137,6 +137,7 @@ def scenes(draw):
     )
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenes(), st.integers(0, 2**32 - 1))
 def test_scan_many_equals_the_numpy_implementation(scene, seed: int) -> None:

@@ -6,6 +6,7 @@ import math
 
 import hypothesis.strategies as st
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from shapely.geometry import Point
 
@@ -143,6 +144,7 @@ def check_against_oracle(config, origin, heading, rects, segs) -> int:
     return ill_posed
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenes())
 def test_cast_rays_matches_shapely_oracle(scene) -> None:

@@ -20,6 +20,8 @@ from platoon_sumo.study import run_study
 from platoon_sumo.study.table import unknown_metrics
 from tests.study.conftest import METRICS, PARAMETERS, scenario, write_study
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 
 def _oracle(run_dir: Path) -> dict[str, float]:
     """The metrics read straight from a run's own files."""

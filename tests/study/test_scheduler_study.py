@@ -19,6 +19,8 @@ import pytest
 from platoon_sumo.study import run_study
 from tests.study.conftest import write_study
 
+pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
+
 DASK = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
 WORKER = [sys.executable, "-m", "distributed.cli.dask_worker"]
 

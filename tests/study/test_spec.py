@@ -94,6 +94,7 @@ def test_the_scenario_copy_is_a_scenario(tmp_path):
     assert "outputs" in text and "directory" not in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", sorted((REPO / "studies").glob("*.yaml")), ids=lambda p: p.stem)
 def test_shipped_studies_validate(path, tmp_path):
     study = load_study(path)
