@@ -25,6 +25,7 @@ from platoon_sumo.errors import PlatoonSumoError, ScenarioError, Terminated, Usa
 from platoon_sumo.results import FolderError
 
 if TYPE_CHECKING:
+    from platoon_sumo.live_view import LiveViewOptions
     from platoon_sumo.loop.context import RunContext, RunOutcome, StepRecord
     from platoon_sumo.scenario import RunPlan
     from platoon_sumo.sensors.laser import LaserScan
@@ -125,16 +126,13 @@ def _network_warnings(plan: RunPlan) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from platoon_sumo.digest import run_digest
-    from platoon_sumo.live_view import LiveViewOptions
     from platoon_sumo.runner import load_plan, run
 
     path = Path(args.scenario) if args.scenario else default_scenario()
     plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
     _network_warnings(plan)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
-    live_view = None
-    if args.gui:
-        live_view = LiveViewOptions(args.gui_vehicle, args.gui_rays, delay_ms=args.gui_delay)
+    live_view = _live_view(args, plan)
     result = run(plan, out_dir=args.out, hooks=hooks, force=args.force, live_view=live_view)
     s = result.summary
     depart = {p.config.id: p.config.depart_s for p in plan.platoons}
@@ -163,6 +161,30 @@ def _cmd_run(args: argparse.Namespace) -> int:
         )
     print(run_digest(s, result.directory, _as_typed(path)))
     return 0
+
+
+def _live_view(args: argparse.Namespace, plan: RunPlan) -> LiveViewOptions | None:
+    """The live view asked for on the command line, its vehicle checked against the plan."""
+    from platoon_sumo.live_view import LiveViewOptions
+
+    if not args.gui:
+        if args.gui_vehicle is not None:
+            raise UsageError("--gui-vehicle: only with --gui (the live view in sumo-gui)")
+        return None
+    members = [m.vehicle_id for p in plan.platoons for m in p.members]
+    if args.gui_vehicle is not None and args.gui_vehicle not in members:
+        shown = ", ".join(members[:8]) + (" ..." if len(members) > 8 else "")
+        raise UsageError(
+            f"--gui-vehicle {args.gui_vehicle!r}: no platoon vehicle of that id in "
+            f"{plan.source.path} (its vehicles: {shown or 'none'})"
+        )
+    from platoon_sumo.sumo.backend import gui_display_problem
+
+    if problem := gui_display_problem():
+        raise UsageError(problem)
+    if not (math.isfinite(args.gui_delay) and args.gui_delay >= 0):
+        raise UsageError(f"--gui-delay {args.gui_delay:g}: give a pause of 0 ms or more")
+    return LiveViewOptions(args.gui_vehicle, args.gui_rays, delay_ms=args.gui_delay)
 
 
 def _as_typed(path: Path) -> Path:

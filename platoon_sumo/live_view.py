@@ -17,6 +17,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.geometry import footprints_from_front_bumper, rectangle_corners
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord, VehicleRecord
 from platoon_sumo.sensors.laser import LaserScan
 
@@ -198,9 +199,9 @@ def footprint(record: StepRecord, vehicle_id: str) -> NDArray[np.float64] | None
     i = world.index.get(vehicle_id)
     if i is None:
         return None
-    c, s = math.cos(world.yaw_rad[i]), math.sin(world.yaw_rad[i])
-    fx, fy = world.front_x_m[i], world.front_y_m[i]
-    half_w, length = 0.5 * world.width_m[i], world.length_m[i]
-    corners = [(0.0, half_w), (0.0, -half_w), (-length, -half_w), (-length, half_w)]
-    pts = [(fx + c * lx - s * ly, fy + s * lx + c * ly) for lx, ly in corners]
-    return np.array([*pts, pts[0]], dtype=np.float64)
+    rect = footprints_from_front_bumper(
+        world.front_x_m[i], world.front_y_m[i], world.yaw_rad[i], world.length_m[i],
+        world.width_m[i],
+    )  # fmt: skip
+    corners = rectangle_corners(rect)[0]
+    return np.vstack([corners, corners[:1]])

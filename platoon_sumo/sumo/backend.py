@@ -73,6 +73,16 @@ def sumo_binary(name: str = "sumo") -> str:
     return path
 
 
+def gui_display_problem() -> str | None:
+    """Why sumo-gui cannot open a window here (None when a display is set)."""
+    if os.environ.get("DISPLAY"):
+        return None
+    return (
+        "sumo-gui needs a display and none is set (DISPLAY); on a machine without one, "
+        "run under a virtual display: xvfb-run -a platoon-sumo run ... --gui"
+    )
+
+
 def sumo_home() -> str:
     return str(sumo.SUMO_HOME)
 
@@ -175,11 +185,8 @@ class SumoBackend:
         """This step's arrivals read by the loop and the vehicles it removed itself."""
 
     def start(self) -> None:
-        if self.options.gui and not os.environ.get("DISPLAY"):
-            raise SumoError(
-                "sumo-gui needs a display and none is set (DISPLAY); on a machine without "
-                "one, run under a virtual display: xvfb-run -a platoon-sumo run ... --gui"
-            )
+        if self.options.gui and (problem := gui_display_problem()):
+            raise SumoError(problem)
         try:
             self._api.start(self.options.command())
         except (self._api.TraCIException, self._api.FatalTraCIError) as exc:
