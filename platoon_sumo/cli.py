@@ -159,7 +159,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"{jam['where']} (summary.json: gridlock_events)",
             file=sys.stderr,
         )
-    print(run_digest(s, result.directory, _as_typed(path)))
+    print(run_digest(s, _as_typed(result.directory), _as_typed(path)))
     return 0
 
 

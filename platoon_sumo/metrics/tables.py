@@ -31,7 +31,7 @@ SIGNALS = (("speed", "speed_mps"), ("accel", "accel_mps2"), ("spacing_error", "s
 #: frequency its l2 gains average away). Split and undisturbed platoons are not judged by
 #: gains; saturated ones (most platoons in traffic: signals, the supervisor) keep their
 #: l2 gains, so that long traffic runs are not read back.
-NEEDS_RESPONSE = (ss.STABLE, ss.UNSTABLE)
+NEEDS_RESPONSE = (ss.STABLE, ss.UNSTABLE, ss.MARGINAL)
 #: Per-follower fields the frequency responses add to vehicles.csv.
 RESPONSE_FIELDS = ("frequency_gain", "frequency_gain_hz", "spacing_error_l2_ratio",
                    "spacing_error_linf_ratio")  # fmt: skip

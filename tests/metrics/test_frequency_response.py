@@ -266,6 +266,10 @@ def follower(index: int, gain: float | None, saturated: float = 0.0, std: float 
             "stable",
         ),
         ([follower(1, 0.5), follower(2, 1.2, std=0.06)], 0, 1.0, "unstable"),
+        # within the estimates' 2 % of 1: neither stable nor unstable
+        ([follower(1, 0.9), follower(2, 1.0 + ss.GAIN_TOLERANCE)], 0, 1.0, "marginal"),
+        ([follower(1, 1.0 + 1.5 * ss.GAIN_TOLERANCE), follower(2, 0.9)], 0, 1.0, "unstable"),
+        ([follower(1, 1.01), follower(2, 0.9, saturated=0.2)], 0, 1.0, "saturated"),
     ],
 )
 def test_verdicts(members, splits, intact, verdict):
