@@ -116,11 +116,12 @@ class CoSimulation:
             while self.backend.time_s < self.end_s - 1e-9:
                 self.step()
             outcome = RunOutcome("complete", self.backend.time_s)
-        except KeyboardInterrupt:
-            outcome = RunOutcome("interrupted", self.backend.time_s, "interrupted")
+        except KeyboardInterrupt:  # the time of the last world read: SUMO may be gone
+            outcome = RunOutcome("interrupted", self.ctx.world.time_s, "interrupted")
             raise
         except BaseException as exc:
-            outcome = RunOutcome("failed", self.backend.time_s, f"{type(exc).__name__}: {exc}")
+            reason = f"{type(exc).__name__}: {exc}"
+            outcome = RunOutcome("failed", self.ctx.world.time_s, reason)
             raise
         finally:
             self._end_hooks(outcome)

@@ -9,6 +9,7 @@ back with moveToXY + setPreviousSpeed (planar actuation) or get a speed through 
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import math
 import os
@@ -16,6 +17,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import libsumo
 import numpy as np
@@ -157,11 +159,11 @@ class SumoBackend:
 
     def __init__(self, options: SumoOptions):
         self.options = options
-        self._api: ModuleType = libsumo
+        self._api: ModuleType | _GuiConnection = libsumo
         if options.gui:
             import traci
 
-            self._api = traci
+            self._api = _GuiConnection(traci)
         self._running = False
         self._geometry: dict[str, tuple[float, float]] = {}
         self._lane_grid: _LaneGrid | None = None
@@ -196,7 +198,8 @@ class SumoBackend:
     def close(self) -> None:
         if self._running:
             self._running = False
-            with contextlib.suppress(self._api.TraCIException, self._api.FatalTraCIError):
+            closed = (self._api.TraCIException, self._api.FatalTraCIError, SumoError)
+            with contextlib.suppress(*closed):  # SUMO may be gone already
                 self._api.close()
 
     def __enter__(self) -> SumoBackend:
@@ -215,8 +218,6 @@ class SumoBackend:
             self._api.simulationStep()
         except self._api.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
-        except self._api.FatalTraCIError as exc:  # TraCI only: sumo-gui's window was closed
-            raise SumoError(f"sumo-gui closed the connection ({exc}); the run stops") from None
         veh, classes = self._api.vehicle, self._type_classes
         departed = self._departed = tuple(self._api.simulation.getDepartedIDList())
         self._in_network += len(departed) - self._api.simulation.getArrivedNumber()
@@ -788,6 +789,31 @@ class SumoBackend:
             yield c.collider, c.victim, c.type
 
 
+class _GuiConnection:
+    """The `traci` client with a lost connection (sumo-gui's window closed) reported as
+    a SumoError, whichever call meets it: one line for the user, not a traceback."""
+
+    def __init__(self, target: object):
+        self._target = target
+
+    def __getattr__(self, name: str) -> Any:
+        value = getattr(self._target, name)
+        if isinstance(value, (type, int, float, str)):  # exception classes, constants
+            return value
+        if callable(value):
+            return functools.partial(_guarded_call, value)
+        return _GuiConnection(value)  # a domain (vehicle, lane, ...) or a module
+
+
+def _guarded_call(function: Any, *args: Any, **kwargs: Any) -> Any:
+    import traci
+
+    try:
+        return function(*args, **kwargs)
+    except traci.FatalTraCIError as exc:
+        raise SumoError(f"sumo-gui closed the connection ({exc}); the run stops") from None
+
+
 def resolve_sumo_path(value: str) -> Path:
     """`sumo:<path>` names a file shipped inside the eclipse-sumo package."""
     if value.startswith("sumo:"):
@@ -815,7 +841,7 @@ class _LaneGrid:
     around: dict[tuple[int, int, int], frozenset[int]] = field(default_factory=dict)
 
     @classmethod
-    def build(cls, api: ModuleType, cell_m: float) -> _LaneGrid:
+    def build(cls, api: ModuleType | _GuiConnection, cell_m: float) -> _LaneGrid:
         lane_ids = tuple(sorted(api.lane.getIDList()))
         cells: dict[tuple[int, int], list[int]] = {}
         for k, lane in enumerate(lane_ids):

@@ -115,3 +115,30 @@ def test_live_view_draws_the_followed_vehicles_rays(display: str, tmp_path: Path
     r, g, b = with_rays[..., 0], with_rays[..., 1], with_rays[..., 2]
     green = (g > r + 60) & (g > b + 60)
     assert (changed & green).sum() > 0.5 * changed.sum()  # ... drawn in the rays' green
+
+
+def test_closing_sumo_gui_ends_the_run_as_failed_with_one_line(display: str, tmp_path: Path):
+    """The user closes the window mid-run: one error line (no traceback, not an
+    "internal error"), exit 1, and the folder says the run failed and keeps its table."""
+    out = tmp_path / "closed"
+    args = ["run", str(SCENARIO), "--out", str(out), "--quiet", "--gui", "--gui-delay", "100"]
+    cli = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from platoon_sumo.cli import main; sys.exit(main())",
+         *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    pattern = f"sumo-gui.*{out}"
+    deadline = time.monotonic() + 60
+    while subprocess.run(["pgrep", "-f", pattern], capture_output=True).returncode != 0:
+        assert cli.poll() is None and time.monotonic() < deadline, "sumo-gui did not start"
+        time.sleep(0.2)
+    time.sleep(4.0)  # a few dozen steps with the 100 ms delay
+    subprocess.run(["pkill", "-f", pattern], check=True)
+    _, stderr = cli.communicate(timeout=60)
+    assert cli.returncode == 1
+    lines = [line for line in stderr.splitlines() if line.startswith("error:")]
+    assert lines == [lines[0]] and "sumo-gui closed the connection" in lines[0]
+    assert "Traceback" not in stderr and "internal error" not in stderr
+    assert (out / "FAILED.txt").read_text().startswith("failed: SumoError: sumo-gui closed")
+    assert not (out / "summary.json").exists()
+    assert (out / "trajectories.csv").stat().st_size > 0
