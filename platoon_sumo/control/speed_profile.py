@@ -20,6 +20,7 @@ Profiles (``v0`` = ``cruise_speed_mps``, ``t0`` = ``start_s``):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
@@ -118,4 +119,5 @@ class SpeedProfileLeader:
             self._t0_s = observation.time_s
         cmd = self._route.step(observation)
         target = profile_speed(self.params, observation.time_s - self._t0_s)
-        return Command(min(cmd.speed_mps, target), cmd.yaw_rate_radps, cmd.heading_rad)
+        # the route's steering and lane requests as they are, the speed capped
+        return dataclasses.replace(cmd, speed_mps=min(cmd.speed_mps, target))
