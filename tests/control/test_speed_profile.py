@@ -7,7 +7,7 @@ import pytest
 
 from platoon_sumo.config_loader import FieldError
 from platoon_sumo.control import CONTROLLERS
-from platoon_sumo.control.base import Observation
+from platoon_sumo.control.base import Controller, Observation
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 from platoon_sumo.control.speed_profile import SpeedProfileParams, profile_speed
 from platoon_sumo.path import RoutePath
@@ -49,31 +49,31 @@ def test_bad_params_name_the_key():
     assert err.value.key == "low_speed_mps"
 
 
-def test_command_is_capped_by_the_profile():
-    cls = CONTROLLERS.get("speed_profile")
-    ctrl = cls(SpeedProfileParams(profile="constant", cruise_speed_mps=5.0))
+def constant_leader_on_a_straight(lane_offset_m: float = 0.0) -> tuple[Controller, Observation]:
+    """A 5 m/s constant-profile leader at 4 m/s on a straight 500 m road, `lane_offset_m`
+    left of its route (the lane SUMO keeps it in, under lane actuation)."""
+    ctrl = CONTROLLERS.get("speed_profile")(
+        SpeedProfileParams(profile="constant", cruise_speed_mps=5.0)
+    )
     ctrl.reset()
     pts = np.column_stack([np.linspace(0, 500, 1001), np.zeros(1001)])
     path = RoutePath.from_pieces([pts], ["e_0"], [27.0], [3.5], 0.5)
-    obs = Observation(time_s=0.0, dt_s=0.1, vehicle_id="v", role="leader", x_m=0.0, y_m=0.0,
-                      yaw_rad=0.0, speed_mps=4.0, front_offset_m=3.6, length_m=4.5,
-                      width_m=1.8, limits=MotionLimits(30.0, 3.0, 8.0, 1.0), path=path)  # fmt: skip
+    obs = Observation(time_s=0.0, dt_s=0.1, vehicle_id="v", role="leader", x_m=0.0,
+                      y_m=lane_offset_m, yaw_rad=0.0, speed_mps=4.0, front_offset_m=3.6,
+                      length_m=4.5, width_m=1.8, limits=MotionLimits(30.0, 3.0, 8.0, 1.0),
+                      path=path, lane_offset_m=lane_offset_m)  # fmt: skip
+    return ctrl, obs
+
+
+def test_command_is_capped_by_the_profile():
+    ctrl, obs = constant_leader_on_a_straight()
     assert ctrl.step(obs).speed_mps == pytest.approx(5.0)
 
 
 def test_the_routes_lane_requests_pass_through_the_profile():
-    """Under lane actuation a disturbance leader one lane left of its route (lateral
-    offset one lane width) asks to move right like route following does; only the
-    speed is the profile's."""
-    cls = CONTROLLERS.get("speed_profile")
-    ctrl = cls(SpeedProfileParams(profile="constant", cruise_speed_mps=5.0))
-    ctrl.reset()
-    pts = np.column_stack([np.linspace(0, 500, 1001), np.zeros(1001)])
-    path = RoutePath.from_pieces([pts], ["e_0"], [27.0], [3.5], 0.5)
-    obs = Observation(time_s=0.0, dt_s=0.1, vehicle_id="v", role="leader", x_m=0.0, y_m=3.5,
-                      yaw_rad=0.0, speed_mps=4.0, front_offset_m=3.6, length_m=4.5,
-                      width_m=1.8, limits=MotionLimits(30.0, 3.0, 8.0, 1.0), path=path,
-                      lane_offset_m=3.5)  # fmt: skip
+    """Under lane actuation a disturbance leader one lane left of its route asks to move
+    right like route following does; only the speed is the profile's."""
+    ctrl, obs = constant_leader_on_a_straight(lane_offset_m=3.5)
     route = RouteFollowing(RouteFollowingParams()).step(obs)
     assert route.lane_change == -1
     cmd = ctrl.step(obs)
