@@ -23,6 +23,7 @@ from tests.helpers import REPO
 pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
 
 SCENARIO = REPO / "scenarios" / "urban_platoon.yaml"
+CLI = [sys.executable, "-m", "platoon_sumo.cli"]  # as the other command-line tests run it
 END_S = 55.0  # the platoon departs at 40 s: a few seconds of five cars and their scans
 
 
@@ -58,11 +59,7 @@ def display() -> Iterator[str]:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-c", "import sys; from platoon_sumo.cli import main; sys.exit(main())",
-         *args],
-        capture_output=True, text=True, timeout=600,
-    )  # fmt: skip
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=600)
 
 
 def test_gui_run_has_the_libsumo_runs_results(display: str, tmp_path: Path) -> None:
@@ -122,11 +119,7 @@ def test_closing_sumo_gui_ends_the_run_as_failed_with_one_line(display: str, tmp
     "internal error"), exit 1, and the folder says the run failed and keeps its table."""
     out = tmp_path / "closed"
     args = ["run", str(SCENARIO), "--out", str(out), "--quiet", "--gui", "--gui-delay", "100"]
-    cli = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from platoon_sumo.cli import main; sys.exit(main())",
-         *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+    cli = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     pattern = f"sumo-gui.*{out}"
     deadline = time.monotonic() + 60
     while subprocess.run(["pgrep", "-f", pattern], capture_output=True).returncode != 0:
