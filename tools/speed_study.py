@@ -232,6 +232,32 @@ def _cell(row: Any) -> str:
     return text + ")"
 
 
+def _speed_grid(
+    table: Any, column: str, values: Sequence[Any], headers: Sequence[str], cell: Any
+) -> list[str]:
+    """Markdown table: a row per leader speed, a column per value of `column` (headed
+    `headers`), each cell `cell(row)` of that run, empty where it did not run."""
+    lines = [
+        "| leader speed [m/s] | " + " | ".join(headers) + " |",
+        "|---|" + "---|" * len(values),
+    ]
+    for speed, group in table.groupby("leader_speed_mps"):
+        cells = []
+        for value in values:
+            r = group[group[column] == value]
+            cells.append("" if r.empty else cell(r.iloc[0]))
+        lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _intact_cells(speeds: Sequence[float], best: float | None, contiguous: float | None) -> str:
+    """The intact speeds, the highest one and the highest with every lower one intact."""
+    return (
+        f"{_speeds_text(speeds)} | {'none' if best is None else f'{best:g}'} "
+        f"| {'none (lowest speed lost)' if contiguous is None else f'{contiguous:g}'}"
+    )
+
+
 def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
     import matplotlib
 
@@ -243,16 +269,7 @@ def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
     table = pd.DataFrame(rows).sort_values(["follower", "leader_speed_mps"])
     table.to_csv(out / f"{STUDY}.csv", index=False)
     followers = list(dict.fromkeys(r["follower"] for r in rows))
-    lines = [
-        "| leader speed [m/s] | " + " | ".join(f"`{f}`" for f in followers) + " |",
-        "|---|" + "---|" * len(followers),
-    ]
-    for speed, group in table.groupby("leader_speed_mps"):
-        cells = []
-        for f in followers:
-            r = group[group["follower"] == f]
-            cells.append("" if r.empty else _cell(r.iloc[0]))
-        lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
+    lines = _speed_grid(table, "follower", followers, [f"`{f}`" for f in followers], _cell)
     tested = sorted({float(r["leader_speed_mps"]) for r in rows})
     speeds = {f: intact_speeds(rows, f) for f in followers}
     best = {f: highest_intact(rows, f) for f in followers}
@@ -269,11 +286,7 @@ def write_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> None:
         "|---|---|---|---|",
     ]
     for f in followers:
-        b, c = best[f], contiguous[f]
-        lines.append(
-            f"| `{f}` | {_speeds_text(speeds[f])} | {'none' if b is None else f'{b:g}'} "
-            f"| {'none (lowest speed lost)' if c is None else f'{c:g}'} |"
-        )
+        lines.append(f"| `{f}` | {_intact_cells(speeds[f], best[f], contiguous[f])} |")
     lines += ["", f"Command: `{command}`"]
     (out / f"{STUDY}.md").write_text("\n".join(lines) + "\n")
     summary = {
@@ -373,16 +386,8 @@ def write_arc_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> No
     table.to_csv(out / f"{ARC_STUDY}.csv", index=False)
     arcs = sorted({float(r["arc_time_s"]) for r in rows})
     range_max = follower_range_max_m()
-    lines = [
-        "| leader speed [m/s] | " + " | ".join(f"`arc_time_s` {a:g} s" for a in arcs) + " |",
-        "|---|" + "---|" * len(arcs),
-    ]
-    for speed, group in table.groupby("leader_speed_mps"):
-        cells = []
-        for a in arcs:
-            r = group[group["arc_time_s"] == a]
-            cells.append("" if r.empty else _arc_cell(r.iloc[0]))
-        lines.append(f"| {speed:g} | " + " | ".join(cells) + " |")
+    headers = [f"`arc_time_s` {a:g} s" for a in arcs]
+    lines = _speed_grid(table, "arc_time_s", arcs, headers, _arc_cell)
     speeds = {a: intact_speeds(rows, "paper_follower", a) for a in arcs}
     best = {a: highest_intact(rows, "paper_follower", a) for a in arcs}
     contiguous = {a: highest_intact_from_lowest(rows, "paper_follower", a) for a in arcs}
@@ -402,11 +407,8 @@ def write_arc_outputs(rows: list[dict[str, Any]], out: Path, command: str) -> No
         "|---|---|---|---|---|",
     ]
     for a in arcs:
-        b, c = best[a], contiguous[a]
         lines.append(
-            f"| {a:g} | {range_max / a:.3g} | {_speeds_text(speeds[a])} "
-            f"| {'none' if b is None else f'{b:g}'} "
-            f"| {'none (lowest speed lost)' if c is None else f'{c:g}'} |"
+            f"| {a:g} | {range_max / a:.3g} | {_intact_cells(speeds[a], best[a], contiguous[a])} |"
         )
     lines += ["", f"Command: `{command}`"]
     (out / f"{ARC_STUDY}.md").write_text("\n".join(lines) + "\n")
