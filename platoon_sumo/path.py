@@ -294,27 +294,40 @@ class RoutePath:
             )  # fmt: skip
             if step != -2:
                 return int(step)
-        # (an unusual lane id, or a value that raises below) lane_beside twice, inline
-        for begin, end in self._lane_change_spans:
-            if begin <= s_m <= end or begin <= target_s_m <= end:
-                return 0
-        spacing, last = self.spacing_m, len(self.xy_m) - 1
-        keys, widths = self._lane_key_of_point, self._lane_width
-        i = min(int(max(s_m, 0.0) // spacing), last)
-        own = keys[i]
-        if own is None:
+        # (an unusual lane id, or a value that raises below) in Python
+        if self._in_lane_change(s_m, target_s_m):
             return 0
-        own_edge, own_index = own
-        own_lane = int(own_index) + round(offset_m / widths[i])
-        j = min(int(max(target_s_m, 0.0) // spacing), last)
-        target = keys[j]
-        if target is None:
+        own = self._lane_of(s_m, offset_m)
+        target = self._lane_of(target_s_m, target_offset_m)
+        if own is None or target is None or own[0] != target[0] or own[1] == target[1]:
             return 0
-        target_edge, target_index = target
-        target_lane = int(target_index) + round(target_offset_m / widths[j])
-        if own_edge != target_edge or own_lane == target_lane:
-            return 0
-        return 1 if target_lane > own_lane else -1
+        return 1 if target[1] > own[1] else -1
+
+    def same_lane(
+        self, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
+    ) -> bool:
+        """Do both points lie in the same lane of the same edge, outside junctions and the
+        route's lane-change stretches (where `lane_step` says 0 for lack of an answer)?"""
+        values = (s_m, offset_m, target_s_m, target_offset_m)
+        if not all(math.isfinite(v) for v in values) or self._in_lane_change(s_m, target_s_m):
+            return False
+        own = self._lane_of(s_m, offset_m)
+        return own is not None and own == self._lane_of(target_s_m, target_offset_m)
+
+    def _in_lane_change(self, s_m: float, target_s_m: float) -> bool:
+        return any(
+            begin <= s_m <= end or begin <= target_s_m <= end
+            for begin, end in self._lane_change_spans
+        )
+
+    def _lane_of(self, s_m: float, offset_m: float) -> tuple[str, int] | None:
+        """(edge, lane index) of the point `offset_m` beside the path at `s_m`, counted
+        from the path's lane by lane widths; None in a junction."""
+        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
+        key = self._lane_key_of_point[i]
+        if key is None:
+            return None
+        return key[0], int(key[1]) + round(offset_m / self._lane_width[i])
 
     def project(
         self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0

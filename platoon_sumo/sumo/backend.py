@@ -501,7 +501,8 @@ class SumoBackend:
             veh.setSpeed(vid, float(speed))
 
     def request_lane_changes(self, requests: dict[str, int]) -> None:
-        """Lane actuation: ask SUMO to change each vehicle one lane left (+1) or right (-1).
+        """Lane actuation: ask SUMO to change each vehicle one lane left (+1) or right (-1),
+        or to keep its lane (0: SUMO's strategic change waits, lane-change mode 1).
 
         SUMO makes the change when the target lane's gap is safe (lane-change mode); a
         request for a lane that does not exist is dropped, as a driver would."""
