@@ -71,6 +71,8 @@ class ActuationBatch:
     limits: MotionLimits
     model: VehicleModel
     dt_s: float
+    keep_lane: NDArray[np.bool_] | None = None
+    """Per vehicle: hold the current lane (`Command.keep_lane`); None: no one asks."""
 
 
 @dataclass(frozen=True)
@@ -132,10 +134,13 @@ class LaneActuation:
 
     def apply(self, batch: ActuationBatch, sumo: ActuationPort) -> ActuationResult:
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
+        keep = batch.keep_lane
+        if keep is None:
+            keep = np.zeros(len(batch.vehicle_ids), dtype=bool)
         requests = {
-            vid: int(lane)
-            for vid, lane in zip(batch.vehicle_ids, batch.lane_change, strict=True)
-            if lane
+            vid: int(lane)  # 0: keep the lane
+            for vid, lane, hold in zip(batch.vehicle_ids, batch.lane_change, keep, strict=True)
+            if lane or hold
         }
         if requests:
             sumo.request_lane_changes(requests)

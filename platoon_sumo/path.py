@@ -294,27 +294,69 @@ class RoutePath:
             )  # fmt: skip
             if step != -2:
                 return int(step)
-        # (an unusual lane id, or a value that raises below) lane_beside twice, inline
-        for begin, end in self._lane_change_spans:
-            if begin <= s_m <= end or begin <= target_s_m <= end:
-                return 0
-        spacing, last = self.spacing_m, len(self.xy_m) - 1
-        keys, widths = self._lane_key_of_point, self._lane_width
-        i = min(int(max(s_m, 0.0) // spacing), last)
-        own = keys[i]
-        if own is None:
+        # (an unusual lane id, or a value that raises below) in Python
+        if self._in_lane_change(s_m, target_s_m):
             return 0
-        own_edge, own_index = own
-        own_lane = int(own_index) + round(offset_m / widths[i])
-        j = min(int(max(target_s_m, 0.0) // spacing), last)
-        target = keys[j]
-        if target is None:
+        own = self._lane_of(s_m, offset_m)
+        target = self._lane_of(target_s_m, target_offset_m)
+        if own is None or target is None or own[0] != target[0] or own[1] == target[1]:
             return 0
-        target_edge, target_index = target
-        target_lane = int(target_index) + round(target_offset_m / widths[j])
-        if own_edge != target_edge or own_lane == target_lane:
-            return 0
-        return 1 if target_lane > own_lane else -1
+        return 1 if target[1] > own[1] else -1
+
+    def same_lane(
+        self, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
+    ) -> bool:
+        """Do both points lie in the same lane of the same edge (outside junctions)? Also
+        along the route's lane changes, where the path runs between lanes
+        (`_lane_shift`)."""
+        if not all(math.isfinite(v) for v in (s_m, offset_m, target_s_m, target_offset_m)):
+            return False
+        own = self._lane_of(s_m, offset_m, shifted=True)
+        return own is not None and own == self._lane_of(target_s_m, target_offset_m, True)
+
+    def _in_lane_change(self, s_m: float, target_s_m: float) -> bool:
+        return any(
+            begin <= s_m <= end or begin <= target_s_m <= end
+            for begin, end in self._lane_change_spans
+        )
+
+    def _lane_of(
+        self, s_m: float, offset_m: float, shifted: bool = False
+    ) -> tuple[str, int] | None:
+        """(edge, lane index) of the point `offset_m` beside the path at `s_m`, counted
+        by lane widths from the lane the point's lane id names (`shifted`: from where the
+        path centre runs, `_lane_shift`); None in a junction."""
+        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
+        key = self._lane_key_of_point[i]
+        if key is None:
+            return None
+        lanes = offset_m / self._lane_width[i] + (self._lane_shift[i] if shifted else 0.0)
+        return key[0], int(key[1]) + round(lanes)
+
+    @cached_property
+    def _lane_shift(self) -> list[float]:
+        """Per point: lanes (left +) between the path centre and the lane its lane id
+        names. A route's lane change blends one lane's shape into the other's inside one
+        edge and keeps the first lane's id (`network.route_path`): across the change the
+        shift grows as the blend's smoothstep to the lanes changed, and stays there to
+        the edge's end."""
+        n = len(self.xy_m)
+        shift = np.zeros(n)
+        s = np.arange(n) * self.spacing_m
+        keys, owner = self._lane_key_of_point, np.asarray(self.lane_index)
+        for change in self.lane_changes:
+            i0 = min(max(int(change.begin_s_m // self.spacing_m), 0), n - 1)
+            key = keys[i0]
+            target = change.target_lane_ids[-1].rsplit("_", 1) if change.target_lane_ids else []
+            if key is None or len(target) != 2 or not target[1].lstrip("-").isdigit():
+                continue
+            lanes = int(target[1]) - int(key[1])
+            piece = owner == owner[i0]
+            span = max(change.end_s_m - change.begin_s_m, 1e-9)
+            u = np.clip((s - change.begin_s_m) / span, 0.0, 1.0)
+            edge = piece & (s >= change.begin_s_m)
+            shift[edge] = lanes * (u * u * (3.0 - 2.0 * u))[edge]
+        return [float(v) for v in shift]
 
     def project(
         self, x_m: float, y_m: float, s_hint_m: float | None = None, window_m: float = 20.0

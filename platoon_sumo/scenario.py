@@ -353,13 +353,13 @@ class VehicleConfig:
     """SUMO's driver time headway (tau) for the platoon's vehicle type [s]; matters with
     `actuation: lane` only, where SUMO's safe speed, computed with it, caps the command
     (smaller: SUMO lets the vehicle follow closer)."""
-    sumo_speed_factor: float | None = bounded(None, gt=0, le=10)
+    sumo_speed_factor: float | None = bounded(1.0, gt=0, le=10)
     """Every member's SUMO speedFactor, without spread: with `actuation: lane` SUMO caps
     the speed command at this factor times the lane's speed limit (1.0: exactly the
-    limit). null: SUMO's default type, a factor drawn per vehicle (mean 1, deviation
-    0.1), as for its human drivers, so members' caps differ; kept as the default until
-    lane-actuated followers hold their lane behind their predecessor (issue 11: on the
-    A10 the exact factor lets SUMO's strategic lane change split a follower)."""
+    limit), the same for every member, so a follower is not held below the speed its
+    predecessor drives. null: SUMO's default type, a factor drawn per vehicle (mean 1,
+    deviation 0.1), as for its human drivers, so members' caps differ (on the A10 a
+    last member drawn 1.007 fell 20 s behind its platoon and out of its laser's view)."""
     actuator_lag_s: float | None = bounded(None, ge=0, le=10)
     """First-order lag between the commanded and the achieved acceleration [s] (engine
     and brakes; Plexe's engine lag, 0.5 s by default there); 0: none. null: the vehicle

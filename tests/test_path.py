@@ -155,3 +155,23 @@ def test_projection_with_integer_arguments_and_bad_hints():
         except ValueError:
             continue
         raise AssertionError(f"no error for hint {hint}, window {window}")
+
+
+def test_lanes_are_named_by_the_map_along_a_routes_lane_change():
+    """A route's lane change blends lane 0's shape into lane 1's inside one edge and
+    keeps lane 0's id (network.route_path). Lanes beside the path are still named by
+    the map: before the change the path runs on lane 0, after it on lane 1, halfway
+    between them in the middle; so a car on lane 1 before the change and one on the
+    path after it are in the same lane."""
+    x = np.linspace(0.0, 200.0, 401)
+    u = np.clip((x - 50.0) / 100.0, 0.0, 1.0)
+    y = 3.2 * u * u * (3 - 2 * u)  # smoothstep from lane 0 (y=0) to lane 1 (y=3.2)
+    change = LaneChange(50.0, 150.0, ("e_1",))
+    path = RoutePath.from_pieces([np.column_stack([x, y])], ["e_0"], [14.0], [3.2], 0.5, [change])
+    before, middle, after = 20.0, path.project(100.0, 1.6).s_m, path.project(190.0, 3.2).s_m
+    assert path.same_lane(before, 3.2, after, 0.0)  # lane 1 both
+    assert path.same_lane(before, 0.0, after, -3.2)  # lane 0 both
+    assert not path.same_lane(before, 0.0, after, 0.0)  # lane 0, lane 1
+    assert path.same_lane(middle, 1.0, after, 0.0)  # half a lane up, plus 1 m: lane 1
+    assert path.same_lane(middle, -1.0, before, 0.0)  # half a lane up, minus 1 m: lane 0
+    assert not path.same_lane(before, float("nan"), after, 0.0)

@@ -110,6 +110,11 @@ class Command:
     actuation steers with the yaw rate / heading instead and ignores this."""
     telemetry: Telemetry | None = None
     """Optional report for the trajectory table (mode, measured gap, spacing policy)."""
+    keep_lane: bool = False
+    """With `actuation: lane`: stay in the current lane this step, a request SUMO's own
+    strategic lane change does not override (a follower whose predecessor drives in
+    its lane keeps it, so SUMO's strategy does not split the platoon). Ignored with a
+    `lane_change` and by the other actuations."""
 
 
 @runtime_checkable
@@ -217,4 +222,6 @@ def command_problem(command: Command) -> str | None:
         return f"heading_rad={heading!r} (must be a finite number or None)"
     if command.lane_change not in (-1, 0, 1):
         return f"lane_change={command.lane_change!r} (must be -1, 0 or +1)"
+    if not isinstance(command.keep_lane, bool):
+        return f"keep_lane={command.keep_lane!r} (must be True or False)"
     return None

@@ -348,12 +348,12 @@ class LaserFollower:
             self._locate_on_route(obs)
         if obs.scan is not None and obs.scan is not self._last_scan:
             self._perceive(obs, obs.scan)
-        lane_change = 0
+        lane_change, keep_lane = 0, False
         heading: float | None = None
         if self.tracker.confirmed:
             self._fallback.advance(obs)  # so it knows where on the route it is
             self.mode = "following"
-            speed, yaw_rate, lane_change = self._follow(obs)
+            speed, yaw_rate, lane_change, keep_lane = self._follow(obs)
         else:
             self._track = self._track_args = None
             if p.on_lost == "route_following" or (p.leave_junctions and self._in_junction(obs)):
@@ -369,7 +369,7 @@ class LaserFollower:
                 self.mode = "stopping"
                 speed, yaw_rate = self._stop(obs)
         if self._blocked:
-            speed, lane_change, heading = 0.0, 0, None
+            speed, lane_change, heading, keep_lane = 0.0, 0, None, False
         if self.mode == "following":
             telemetry = Telemetry(self.mode, self._measured_gap_m, self.gap_policy)
         else:  # the same for every step in this mode (frozen): made once
@@ -382,6 +382,7 @@ class LaserFollower:
             heading_rad=heading,
             lane_change=lane_change,
             telemetry=telemetry,
+            keep_lane=keep_lane,
         )
 
     # ------------------------------------------------------------------ perception
@@ -496,14 +497,18 @@ class LaserFollower:
         self._corridor_memo = (x_m, y_m, inside)
         return inside
 
-    def _lane_request(self, obs: Observation, x_m: float, y_m: float) -> int:
+    def _lane_request(self, obs: Observation, x_m: float, y_m: float) -> tuple[int, bool]:
         """Where SUMO steers (lane actuation): +1 / -1 towards the lane of the same road in
         which the laser sees the predecessor, else 0 (also where either is in a junction
-        or the route's own lane change: lanes are compared by the map, not by offsets)."""
+        or the route's own lane change: lanes are compared by the map, not by offsets);
+        and whether to keep the lane, seeing the predecessor in it (so that SUMO's
+        strategy does not take the follower out of its platoon's lane)."""
         at = self._ahead_on_route(obs, x_m, y_m) if self._in_view else None
         if at is None or self._route_s is None:
-            return 0
-        return obs.path.lane_step(self._route_s, obs.lane_offset_m, at[0], at[1])
+            return 0, False
+        path, s, offset = obs.path, self._route_s, obs.lane_offset_m
+        step = path.lane_step(s, offset, at[0], at[1])
+        return step, step == 0 and path.same_lane(s, offset, at[0], at[1])
 
     def _route_target(self, obs: Observation) -> tuple[float, float] | None:
         """The own route's point one look-ahead beyond the follower (None without a corridor)."""
@@ -533,9 +538,10 @@ class LaserFollower:
 
     # ------------------------------------------------------------------ following
 
-    def _follow(self, obs: Observation) -> tuple[float, float, int]:
-        """(speed, yaw rate, lane request) behind the tracked predecessor: the spacing law
-        and pure pursuit on the trail (``follow_kernel``), towards the lane it is seen in."""
+    def _follow(self, obs: Observation) -> tuple[float, float, int, bool]:
+        """(speed, yaw rate, lane request, keep the lane) behind the tracked predecessor:
+        the spacing law and pure pursuit on the trail (``follow_kernel``), towards the
+        lane it is seen in."""
         p = self.params
         rx, ry, vx, vy = self.tracker.predicted_state(obs.time_s)
         # steering: never after a rear outside the route corridor (turning off the route)
@@ -553,7 +559,7 @@ class LaserFollower:
         self._measured_gap_m = gap
         self._track = None
         self._track_args = (range_m, bearing, range_rate, self._in_view, lead_speed, rx, ry)
-        return speed, yaw_rate, self._lane_request(obs, rx, ry)
+        return speed, yaw_rate, *self._lane_request(obs, rx, ry)
 
     def _law(self, limits: MotionLimits) -> FloatArray:
         """The parameters of ``follow_kernel`` (``LAW_NAMES``) with these limits."""

@@ -48,6 +48,7 @@ class Actuate:
                 speed_cmd_mps=speed_cmd,
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
+                keep_lane=np.array([m.executed.keep_lane for m in group], dtype=bool),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
                 length_m=platoon.config.vehicle.length_m,
                 limits=platoon.limits,

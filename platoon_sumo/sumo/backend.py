@@ -65,6 +65,15 @@ HANDED_OVER_LATERAL_MPS = 1.0
 HANDED_BACK_WITHIN_M = 0.3
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
+#: Lane actuation: a controller's lane request (a change, or keeping the lane against
+#: SUMO's strategy) is honoured while the lane it keeps or moves to lets the vehicle go
+#: on along its route, with room for the lane changes still needed from there, this long
+#: at its speed per change (and at least `LANE_CHOICE_RESERVE_M` per change); nearer,
+#: SUMO's strategic lane change chooses (a follower keeping its lane behind the wrong
+#: vehicle would otherwise miss its route) [s].
+LANE_CHOICE_RESERVE_S = 6.0
+#: [m] see `LANE_CHOICE_RESERVE_S`.
+LANE_CHOICE_RESERVE_M = 50.0
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -179,6 +188,10 @@ class SumoBackend:
         self._kept_on: dict[str, str] = {}
         """Sublane actuation: vehicles handed over for a lane change their route needs,
         with the edge it is on (SUMO keeps them to that edge's end)."""
+        self._route_lanes: dict[str, tuple[str, dict[str, tuple[float, int]]]] = {}
+        """Lane actuation: per vehicle, its edge and SUMO's best lanes there (lane id:
+        length the route can be followed from the lane's start, lane changes still
+        needed), read once per edge."""
         self._type_classes: dict[str, str] = {}
         self._largest_m = 0.0
         self._in_network = 0
@@ -438,11 +451,7 @@ class SumoBackend:
     def arrived_ids(self) -> tuple[str, ...]:
         arrived = tuple(self._api.simulation.getArrivedIDList())
         for vid in arrived:
-            self._geometry.pop(vid, None)
-            self._lanes_behind.pop(vid, None)
-            self._handed_over.discard(vid)
-            self._slow_since.pop(vid, None)
-            self._kept_on.pop(vid, None)
+            self._forget(vid)
         self._known_gone = set(arrived)
         return arrived
 
@@ -454,11 +463,7 @@ class SumoBackend:
             vid for vid in self._api.simulation.getArrivedIDList() if vid not in self._known_gone
         )
         for vid in gone:
-            self._geometry.pop(vid, None)
-            self._lanes_behind.pop(vid, None)
-            self._handed_over.discard(vid)
-            self._slow_since.pop(vid, None)
-            self._kept_on.pop(vid, None)
+            self._forget(vid)
         self._known_gone.update(gone)
         self._in_network -= len(gone)
         return gone
@@ -501,20 +506,42 @@ class SumoBackend:
             veh.setSpeed(vid, float(speed))
 
     def request_lane_changes(self, requests: dict[str, int]) -> None:
-        """Lane actuation: ask SUMO to change each vehicle one lane left (+1) or right (-1).
+        """Lane actuation: ask SUMO to change each vehicle one lane left (+1) or right (-1),
+        or to keep its lane (0: SUMO's own lane changes wait).
 
-        SUMO makes the change when the target lane's gap is safe (lane-change mode); a
-        request for a lane that does not exist is dropped, as a driver would."""
+        SUMO makes the change when the target lane's gap is safe (lane-change mode). A
+        request is dropped, as a driver would, for a lane that does not exist or from
+        which the route cannot be followed on with the room `LANE_CHOICE_RESERVE_S`
+        gives (SUMO's strategy then picks the lane)."""
         veh = self._api.vehicle
         for vid, direction in requests.items():
-            lane = veh.getLaneIndex(vid) + direction
-            if veh.getLaneID(vid).startswith(":") or not 0 <= lane < self._api.edge.getLaneNumber(
-                veh.getRoadID(vid)
-            ):
+            lane_id = veh.getLaneID(vid)
+            if not lane_id or lane_id.startswith(":"):
                 continue
+            edge = self._lane_edge(lane_id)
+            lane = veh.getLaneIndex(vid) + direction
+            best = self._best_lanes(vid, edge).get(f"{edge}_{lane}")
+            if best is None:  # no such lane, or not one SUMO's route planning knows
+                continue
+            length_m, changes = best
+            if changes:
+                reserve = max(LANE_CHOICE_RESERVE_M, LANE_CHOICE_RESERVE_S * veh.getSpeed(vid))
+                if length_m - veh.getLanePosition(vid) < abs(changes) * reserve:
+                    continue
             # for one step: re-issued while the controller asks, never carried onto the
             # next edge (where that index may lead elsewhere)
             veh.changeLane(vid, lane, self.options.step_s)
+
+    def _best_lanes(self, vid: str, edge: str) -> dict[str, tuple[float, int]]:
+        """SUMO's best lanes of the vehicle's edge (`_route_lanes`), read once per edge."""
+        known = self._route_lanes.get(vid)
+        if known is None or known[0] != edge:
+            lanes = {
+                str(lane): (float(length), int(offset))
+                for lane, length, _, offset, _, _ in self._api.vehicle.getBestLanes(vid)
+            }
+            known = self._route_lanes[vid] = (edge, lanes)
+        return known[1]
 
     def set_lateral_speeds(
         self, vehicle_ids: Sequence[str], speed_mps: NDArray[np.float64]
@@ -718,12 +745,17 @@ class SumoBackend:
         except self._api.TraCIException as exc:
             raise SumoError(f"cannot remove vehicle '{vehicle_id}': {exc}") from None
         self._in_network -= on_road  # SUMO does not count our removals as arrivals
-        self._geometry.pop(vehicle_id, None)
-        self._lanes_behind.pop(vehicle_id, None)
-        self._handed_over.discard(vehicle_id)
-        self._slow_since.pop(vehicle_id, None)
-        self._kept_on.pop(vehicle_id, None)
+        self._forget(vehicle_id)
         self._known_gone.add(vehicle_id)
+
+    def _forget(self, vid: str) -> None:
+        """Drop what is kept about a vehicle that left the network."""
+        self._geometry.pop(vid, None)
+        self._lanes_behind.pop(vid, None)
+        self._handed_over.discard(vid)
+        self._slow_since.pop(vid, None)
+        self._kept_on.pop(vid, None)
+        self._route_lanes.pop(vid, None)
 
     def route_contexts(
         self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]

@@ -661,7 +661,9 @@ def test_corridor_follows_the_lane_sumo_drives_in_beside_the_route():
 @pytest.mark.parametrize(("pred_y", "lane_change"), [(3.3, 1), (-3.1, -1), (1.0, 0), (0.1, 0)])
 def test_predecessor_in_the_next_lane_asks_for_a_lane_change(pred_y, lane_change):
     """Where SUMO steers, the follower asks to move to the lane its predecessor is seen
-    in (more than half a lane beside the own one) and stays put otherwise."""
+    in (more than half a lane beside the own one) and otherwise keeps its lane: a
+    request SUMO's strategic lane change does not override, so SUMO's strategy does
+    not take it out of its platoon's lane."""
     params = LaserFollowerParams(on_lost="route_following", corridor_margin_rel=1.2)
     me = car(0.0, v=8.0)
     start = car_with_rear(CAR_FRONT + 10.0, 0.0)
@@ -675,6 +677,7 @@ def test_predecessor_in_the_next_lane_asks_for_a_lane_change(pred_y, lane_change
         cmd = ctrl.step(obs)
     assert cmd is not None and ctrl.mode == "following"
     assert cmd.lane_change == lane_change
+    assert cmd.keep_lane == (lane_change == 0)
 
 
 @pytest.mark.parametrize("corridor", ["lane", None])
