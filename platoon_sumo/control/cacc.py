@@ -21,19 +21,21 @@ second (a step to the larger gap would brake hard), and back once messages retur
 The law sets the desired acceleration; the command is the speed it reaches within one
 step, capped by route following's speed (speed limits, curves, signals), which also
 steers. With nothing within the radar's range the vehicle cruises as route following.
+That frame (`GapControl`), the message check (`fresh_message`) and the time gap's ramp
+(`ramp`) serve `path_cacc` too (path_cacc.py), whose fall-back is this ACC law.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from platoon_sumo.config_loader import bounded, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 from platoon_sumo.sensors.radar import RadarReading
-from platoon_sumo.sensors.v2v import V2VInbox
+from platoon_sumo.sensors.v2v import V2VInbox, V2VMessage
 
 
 @dataclass(frozen=True)
@@ -56,26 +58,36 @@ class AccParams:
 
 
 @dataclass(frozen=True)
-class CaccParams(AccParams):
-    time_gap_s: float = bounded(0.5, gt=0, le=10)
-    """h: time gap kept at speed while the predecessor's messages arrive [s]."""
+class FallbackParams:
+    """The V2V channel and the fall-back to ACC when its messages stop (`cacc`,
+    `path_cacc`)."""
+
     channel: str = "v2v"
     """Name of the V2V sensor (`observation.sensors[name]`, a V2VInbox)."""
     message_timeout_s: float = bounded(0.5, gt=0, le=60)
-    """A predecessor message older than this is stale: fall back to ACC [s]."""
+    """A message older than this is stale: fall back to ACC [s]."""
     fallback_time_gap_s: float = bounded(1.2, gt=0, le=10)
     """Time gap of the ACC fall-back [s]."""
     time_gap_rate: float = bounded(0.2, gt=0, le=100)
-    """How fast the time gap moves between the two [s per s]."""
+    """How fast the time gap moves between the cooperative one and the fall-back's
+    [s per s]."""
 
 
-@CONTROLLERS.register("acc")
-class Acc:
-    """Radar-only constant time gap control (the `cacc` law without feed-forward)."""
+@dataclass(frozen=True)
+class CaccParams(FallbackParams, AccParams):
+    time_gap_s: float = bounded(0.5, gt=0, le=10)
+    """h: time gap kept at speed while the predecessor's messages arrive [s]."""
 
-    Params: ClassVar[type[AccParams]] = AccParams
 
-    def __init__(self, params: AccParams | None = None) -> None:
+class GapControl:
+    """What the radar laws share: the gap from the range sensor, the own acceleration
+    from speeds, route following's cap and steering, the anti-windup and the Command.
+    A law (`_law`) returns the desired acceleration and its mode; `_ploeg` is the ACC
+    law every fall-back uses."""
+
+    Params: ClassVar[type[Any]]
+
+    def __init__(self, params: Any = None) -> None:
         self.params = params or self.Params()
         self._route = RouteFollowing(self.params.route)
         self.reset()
@@ -84,15 +96,27 @@ class Acc:
         self._route.reset()
         self._u_mps2 = 0.0
         self._last_speed_mps: float | None = None
-        self._time_gap_s = self.params.time_gap_s
+        self._time_gap_s = 0.0
 
-    def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:
-        """The predecessor's desired acceleration, or None (no usable message)."""
-        return None
+    def _law(self, obs: Observation, reading: RadarReading, accel: float) -> tuple[float, str]:
+        """(desired acceleration before the limits, mode) for a radar target ahead."""
+        raise NotImplementedError
 
-    def _time_gap(self, cooperative: bool, dt_s: float) -> float:
-        """h for this step."""
-        return self.params.time_gap_s
+    def _policy(self) -> GapPolicy:
+        raise NotImplementedError
+
+    def _ploeg(
+        self, obs: Observation, reading: RadarReading, accel: float, standstill_m: float,
+        h: float, kp: float, kd: float, feed_forward: float,
+    ) -> float:  # fmt: skip
+        """Ploeg et al.'s u after one step of its first-order filter (forward Euler;
+        below one step of `h`, as `path_cacc`'s fall-back starts, u follows at once)."""
+        ahead_speed = reading.speed_mps if reading.speed_mps is not None else obs.speed_mps
+        assert reading.gap_m is not None
+        error = reading.gap_m - (standstill_m + h * obs.speed_mps)
+        error_rate = ahead_speed - obs.speed_mps - h * accel
+        drive = kp * error + kd * error_rate + feed_forward
+        return self._u_mps2 + (obs.dt_s / h if h > obs.dt_s else 1.0) * (drive - self._u_mps2)
 
     def step(self, observation: Observation) -> Command:
         obs, p = observation, self.params
@@ -109,13 +133,7 @@ class Acc:
                 Telemetry("cruise", None, self._policy(), self._u_mps2),
             )  # fmt: skip
         route = self._route._step(obs, math.inf)
-        feed_forward = self._feed_forward(obs, reading)
-        h = self._time_gap_s = self._time_gap(feed_forward is not None, obs.dt_s)
-        ahead_speed = reading.speed_mps if reading.speed_mps is not None else obs.speed_mps
-        error = reading.gap_m - (p.standstill_gap_m + h * obs.speed_mps)
-        error_rate = ahead_speed - obs.speed_mps - h * accel
-        drive = p.kp_1ps2 * error + p.kd_1ps * error_rate + (feed_forward or 0.0)
-        u = self._u_mps2 + obs.dt_s / h * (drive - self._u_mps2)
+        u, mode = self._law(obs, reading, accel)
         limits = obs.limits
         u = min(max(u, -limits.max_decel_mps2), limits.max_accel_mps2)
         # the route's speed (limits, curves, signals) caps the command; the law's state
@@ -123,11 +141,63 @@ class Acc:
         wanted = obs.speed_mps + u * obs.dt_s
         speed = min(max(wanted, 0.0), route.speed_mps)
         self._u_mps2 = (speed - obs.speed_mps) / obs.dt_s if speed < wanted else u
-        mode = "cacc" if feed_forward is not None else "acc"
         return Command(
             speed, route.yaw_rate_radps, route.heading_rad, route.lane_change,
             Telemetry(mode, reading.gap_m, self._policy(), self._u_mps2),
         )  # fmt: skip
+
+
+def fresh_message(
+    obs: Observation, params: FallbackParams, index: int, reading: RadarReading | None = None
+) -> V2VMessage | None:
+    """The newest message of member `index` of the vehicle's platoon, unless it is older
+    than `message_timeout_s` or (with `reading`) the radar's target is another vehicle,
+    e.g. after a cut-in: not its law to follow."""
+    inbox = obs.sensors.get(params.channel)
+    if not isinstance(inbox, V2VInbox) or index < 0:
+        return None
+    message = inbox.from_member(obs.platoon_id, index)
+    if message is None or obs.time_s - message.sent_s > params.message_timeout_s:
+        return None
+    if reading is not None and reading.target_id not in (None, message.sender_id):
+        return None
+    return message
+
+
+def ramp(current: float, target: float, rate: float, dt_s: float) -> float:
+    """`current` moved towards `target` by at most `rate * dt_s` (the fall-back's time
+    gap: a step to a larger gap would brake hard)."""
+    step = rate * dt_s
+    return current + min(max(target - current, -step), step)
+
+
+@CONTROLLERS.register("acc")
+class Acc(GapControl):
+    """Radar-only constant time gap control (the `cacc` law without feed-forward)."""
+
+    Params: ClassVar[type[AccParams]] = AccParams
+    params: AccParams
+
+    def reset(self) -> None:
+        super().reset()
+        self._time_gap_s = self.params.time_gap_s
+
+    def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:
+        """The predecessor's desired acceleration, or None (no usable message)."""
+        return None
+
+    def _time_gap(self, cooperative: bool, dt_s: float) -> float:
+        """h for this step."""
+        return self.params.time_gap_s
+
+    def _law(self, obs: Observation, reading: RadarReading, accel: float) -> tuple[float, str]:
+        p = self.params
+        feed_forward = self._feed_forward(obs, reading)
+        h = self._time_gap_s = self._time_gap(feed_forward is not None, obs.dt_s)
+        u = self._ploeg(
+            obs, reading, accel, p.standstill_gap_m, h, p.kp_1ps2, p.kd_1ps, feed_forward or 0.0
+        )
+        return u, "cacc" if feed_forward is not None else "acc"
 
     def _policy(self) -> GapPolicy:
         return GapPolicy(self.params.standstill_gap_m, self._time_gap_s)
@@ -142,18 +212,10 @@ class Cacc(Acc):
     params: CaccParams
 
     def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:
-        inbox = obs.sensors.get(self.params.channel)
-        if not isinstance(inbox, V2VInbox) or obs.index < 1:
-            return None
-        message = inbox.from_member(obs.platoon_id, obs.index - 1)
-        if message is None or obs.time_s - message.sent_s > self.params.message_timeout_s:
-            return None
-        if reading.target_id is not None and reading.target_id != message.sender_id:
-            return None  # the radar sees another vehicle (a cut-in): not its law to follow
-        return message.desired_accel_mps2
+        message = fresh_message(obs, self.params, obs.index - 1, reading)
+        return None if message is None else message.desired_accel_mps2
 
     def _time_gap(self, cooperative: bool, dt_s: float) -> float:
         p = self.params
         target = p.time_gap_s if cooperative else p.fallback_time_gap_s
-        step = p.time_gap_rate * dt_s
-        return self._time_gap_s + min(max(target - self._time_gap_s, -step), step)
+        return ramp(self._time_gap_s, target, p.time_gap_rate, dt_s)

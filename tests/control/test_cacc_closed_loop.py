@@ -25,7 +25,10 @@ pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
 WARM_UP_S = 30.0
 
 
-def _scenario(folder: Path, follower: str, step_s: float, v2v: str, end_s: float) -> Path:
+def _scenario(
+    folder: Path, follower: str, step_s: float, v2v: str, end_s: float, params: str,
+    spacing_m: float, warm_up_s: float,
+) -> Path:  # fmt: skip
     path = folder / "protocol.yaml"
     path.write_text(
         textwrap.dedent(f"""\
@@ -35,28 +38,37 @@ def _scenario(folder: Path, follower: str, step_s: float, v2v: str, end_s: float
           - id: p
             route: {{edges: [WE]}}
             members: 5
-            spacing_m: 12.0
+            spacing_m: {spacing_m}
             depart_pos_m: 150.0
             actuation: lane
             vehicle: {{max_speed_mps: 30.0, max_accel_mps2: 3.0, max_decel_mps2: 8.0,
                        sumo_tau_s: 0.1, actuator_lag_s: 0.1, sumo_speed_factor: 1.0}}
             leader:
               type: speed_profile
-              params: {{profile: sinusoid, cruise_speed_mps: 18.0, start_s: {WARM_UP_S},
+              params: {{profile: sinusoid, cruise_speed_mps: 18.0, start_s: {warm_up_s},
                         amplitude_mps: 3.0, period_s: 20.0}}
               sensors: [{v2v}]
             follower:
               type: {follower}
-              params: {{time_gap_s: 0.5}}
+              params: {params}
               sensors: [{{type: radar}}, {v2v}]
-        outputs: {{directory: {folder / "out"}, metrics_start_s: {WARM_UP_S}}}
+        outputs: {{directory: {folder / "out"}, metrics_start_s: {warm_up_s}}}
         """)
     )
     return path
 
 
-def _run(folder: Path, follower: str, step_s: float = 0.05, v2v: str = "{type: v2v}") -> Path:
-    run(load_plan(_scenario(folder, follower, step_s, v2v, end_s=WARM_UP_S + 60.0)))
+def _run(
+    folder: Path, follower: str, step_s: float = 0.05, v2v: str = "{type: v2v}",
+    params: str = "{time_gap_s: 0.5}", spacing_m: float = 12.0, warm_up_s: float = WARM_UP_S,
+) -> Path:  # fmt: skip
+    """The run's results folder; `params` is the follower's (YAML flow mapping),
+    `spacing_m` the gap the cars leave with, `warm_up_s` when the sinusoid and the
+    metrics start (60 s of it follow)."""
+    scenario = _scenario(
+        folder, follower, step_s, v2v, warm_up_s + 60.0, params, spacing_m, warm_up_s
+    )
+    run(load_plan(scenario))
     return folder / "out"
 
 
