@@ -23,6 +23,7 @@ import pandas as pd
 
 import platoon_sumo
 from platoon_sumo.config_loader import FieldError
+from platoon_sumo.control.base import SumoCarFollowing
 from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import ScenarioError
 from platoon_sumo.events import WALL, Event, EventKind, count, of_kind
@@ -42,9 +43,14 @@ from platoon_sumo.metrics.sumo_outputs import (
 from platoon_sumo.metrics.tables import by_id, overall, summary_tables, write_table
 from platoon_sumo.recorder import EventWriter, ScanSnapshot, TrajectoryRecorder
 from platoon_sumo.results import COMPLETE, FAILED, INTERRUPTED, claim
-from platoon_sumo.scenario import RunPlan, ScenarioSource, load_scenario, prepare
+from platoon_sumo.scenario import PlatoonPlan, RunPlan, ScenarioSource, load_scenario, prepare
 from platoon_sumo.scene_recorder import SCANS_FILE, SCENE_FILE, SceneRecorder
-from platoon_sumo.sumo.backend import SumoBackend, SumoOptions, sumo_version
+from platoon_sumo.sumo.backend import (
+    SumoBackend,
+    SumoOptions,
+    sumo_version,
+    write_car_following_types,
+)
 from platoon_sumo.sumo.shapes import read_wall_segments
 from platoon_sumo.traffic import write_traffic_inputs
 
@@ -148,6 +154,12 @@ def _run(
     if out.sumo_outputs:
         edge_add = write_edgedata_additional(directory / "inputs", directory, out.edgedata_period_s)
         extra_additional = (str(edge_add),)
+    types = _vehicle_types(plan)
+    models = {f"{t}_model": {"carFollowModel": cf.model, **cf.attributes}
+              for t, _, cf in types if cf is not None}  # fmt: skip
+    if models:
+        path = directory / "inputs" / "car_following_types.add.xml"
+        extra_additional += (str(write_car_following_types(path, models)),)
     options = SumoOptions(
         net_file=str(plan.net_file),
         step_s=sc.simulation.step_s,
@@ -190,12 +202,13 @@ def _run(
     backend = SumoBackend(options)
     backend.start()
     try:
-        for platoon in plan.platoons:
+        for type_id, platoon, cf in types:
             v = platoon.config.vehicle
+            min_gap = v.min_gap_m if cf is None or cf.min_gap_m is None else cf.min_gap_m
             backend.add_vehicle_type(
-                platoon.type_id, v.length_m, v.width_m, v.min_gap_m, v.max_speed_mps,
-                v.max_accel_mps2, v.max_decel_mps2, v.vclass, v.sumo_tau_s,
-                v.sumo_speed_factor,
+                type_id, v.length_m, v.width_m, min_gap, v.max_speed_mps, v.max_accel_mps2,
+                v.max_decel_mps2, v.vclass, v.sumo_tau_s if cf is None else cf.tau_s,
+                v.sumo_speed_factor, "DEFAULT_VEHTYPE" if cf is None else f"{type_id}_model",
             )  # fmt: skip
         sim = CoSimulation(
             plan,
@@ -232,6 +245,18 @@ def _run(
     with (directory / "summary.json").open("w") as f:
         json.dump(summary, f, indent=2)
     return RunResult(directory, summary)
+
+
+def _vehicle_types(plan: RunPlan) -> list[tuple[str, PlatoonPlan, SumoCarFollowing | None]]:
+    """Every SUMO type the platoons need: each platoon's, and a role's own where SUMO's
+    car-following model drives its members (with that model)."""
+    types: dict[str, tuple[str, PlatoonPlan, SumoCarFollowing | None]] = {}
+    for platoon in plan.platoons:
+        types[platoon.type_id] = (platoon.type_id, platoon, None)
+        for member in platoon.members:
+            type_id = platoon.type_id_of(member)
+            types.setdefault(type_id, (type_id, platoon, member.sumo_car_following))
+    return list(types.values())
 
 
 def _summary(plan: RunPlan, sim: CoSimulation, end_time_s: float, wall_s: float) -> dict[str, Any]:

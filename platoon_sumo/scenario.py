@@ -32,6 +32,7 @@ from platoon_sumo.config_loader import (
     require_positive,
 )
 from platoon_sumo.control import CONTROLLERS, Controller
+from platoon_sumo.control.base import SumoCarFollowing, sumo_car_following
 from platoon_sumo.errors import ScenarioError, did_you_mean
 from platoon_sumo.sensors import laser_sensor as _laser_sensor  # noqa: F401 (registers)
 from platoon_sumo.sensors import radar as _radar  # noqa: F401 (registers)
@@ -710,6 +711,9 @@ class MemberPlan:
     waits_for_room: bool = False
     """The platoon does not fit on its first edge: this member departs after the one
     ahead of it, once that one has left room (at the rearmost slot that fits)."""
+    sumo_car_following: SumoCarFollowing | None = None
+    """SUMO's car-following model drives this member's speed (its controller asks for
+    it, e.g. `sumo_driver`): its own vehicle type, `PlatoonPlan.type_id_of`."""
 
     @property
     def laser(self) -> LaserConfig | None:
@@ -733,6 +737,13 @@ class PlatoonPlan:
     @property
     def type_id(self) -> str:
         return f"platoon_{self.config.id}"
+
+    def type_id_of(self, member: MemberPlan) -> str:
+        """The member's SUMO vehicle type: the platoon's, or its role's own where SUMO's
+        car-following model drives it."""
+        if member.sumo_car_following is None:
+            return self.type_id
+        return f"{self.type_id}_{member.role}"
 
 
 @dataclass(frozen=True)
@@ -983,7 +994,18 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         # members beyond the first edge's room wait at the rearmost slot that fits
         pos = depart_pos - min(k, fitting - 1) * slot_m
         sensors = _sensors(ctrl, file, ctrl_key)
-        members.append(MemberPlan(vid, p.id, k, role, cls, params, pos, sensors, k >= fitting))
+        sumo_cf = sumo_car_following(cls, params)
+        actuator = ACTUATORS.get(p.actuation)
+        if sumo_cf is not None and (not actuator.sumo_drives or actuator.steers):
+            raise ScenarioError(
+                file, f"{key}.actuation",
+                f"the {role}s' controller '{ctrl.type}' leaves the speed to SUMO's "
+                f"car-following model, which drives a car along its lanes only; got "
+                f"'{p.actuation}'", "use `actuation: lane`",
+            )  # fmt: skip
+        members.append(
+            MemberPlan(vid, p.id, k, role, cls, params, pos, sensors, k >= fitting, sumo_cf)
+        )
     return PlatoonPlan(
         config=p,
         edges=edges,

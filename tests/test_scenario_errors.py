@@ -78,6 +78,17 @@ def edits(*steps: Edit) -> Edit:
     return edit
 
 
+def _sumo_followers(params: dict[str, Any], actuation: str | None = "lane") -> Edit:
+    """Two members, the follower a `sumo_driver` with `params` (and `actuation`, if any)."""
+    steps = [
+        put("platoons.0.members", 2),
+        put("platoons.0.follower", {"type": "sumo_driver", "params": params}),
+    ]
+    if actuation is not None:
+        steps.append(put("platoons.0.actuation", actuation))
+    return edits(*steps)
+
+
 @dataclass(frozen=True)
 class Case:
     id: str
@@ -406,6 +417,32 @@ CASES = [
         ),
     ),
     Case(
+        "sumo_driver_unknown_model",
+        "platoons[0].follower.params.car_follow_model",
+        ("unknown value 'IMD'", "IDM", "Krauss", "CACC"),
+        _sumo_followers({"car_follow_model": "IMD"}),
+        hint="did you mean 'IDM'?",
+    ),
+    Case(
+        "sumo_driver_parameter_of_another_model",
+        "platoons[0].follower.params.parameters.speedControlGain",
+        ("SUMO's IDM has no attribute 'speedControlGain'", "delta", "stepping"),
+        _sumo_followers({"car_follow_model": "IDM", "parameters": {"speedControlGain": -0.4}}),
+    ),
+    Case(
+        "sumo_driver_parameter_set_elsewhere",
+        "platoons[0].follower.params.parameters.tau",
+        ("is not a parameter here", "tau_s"),
+        _sumo_followers({"car_follow_model": "Krauss", "parameters": {"tau": 1.0}}),
+    ),
+    Case(
+        "sumo_driver_needs_lane_actuation",
+        "platoons[0].actuation",
+        ("controller 'sumo_driver' leaves the speed to SUMO's car-following model", "planar"),
+        _sumo_followers({}, actuation=None),
+        hint="use `actuation: lane`",
+    ),
+    Case(
         "unknown_actuation",
         "platoons[0].actuation",
         ("'lanes'", "planar", "lane"),
@@ -728,6 +765,7 @@ RUN_CASES = {
     "unknown_edge",
     "unconnected_route",
     "unknown_controller",
+    "sumo_driver_unknown_model",
     "plugin_module_fails_to_import",
     "impossible_platoon",
     "duplicate_top_level_key",

@@ -2,10 +2,10 @@
 
 Runs each protocol scenario of `scenarios/protocols/` with each follower setting below
 swapped into its follower block (the leader and road stay, the vehicles but for
-`VEHICLE_OVERRIDES`; a protocol in `SKIPPED` is not run for that controller), then the same
-protocol with SUMO's own car-following models driving the followers (`SUMO_FOLLOWERS`,
-in libsumo directly: the leader's speed set from the same profile each step), and
-writes the table of docs/baselines.md between its markers:
+`VEHICLE_OVERRIDES`; a protocol in `SKIPPED` is not run for that controller), SUMO's own
+car-following models among them (`SUMO_FOLLOWERS`: the `sumo_driver` controller, SUMO's
+model deciding the followers' speed in the project's own runs), and writes the table of
+docs/baselines.md between its markers:
 
     python tools/baselines.py [--work DIR] [--doc]
 
@@ -13,9 +13,9 @@ Per run, over the followers from the disturbance on (`outputs.metrics_start_s`):
 largest spacing error (not for SUMO's models, which declare no spacing policy), the
 worst member-to-member acceleration l2 gain, the smallest gap and time to collision to
 the vehicle ahead, the RMS jerk, the largest ratio of peak spacing errors from one
-follower to the next (l-inf), collisions, and for the project's controllers their
-string-stability verdict (platoons.csv) with its worst frequency gain and the share of
-follower steps in their main mode (cacc's fall-back shows as a share below 100 %).
+follower to the next (l-inf), collisions, the run's string-stability verdict
+(platoons.csv) with its worst frequency gain and the share of follower steps in their
+main mode (cacc's fall-back shows as a share below 100 %).
 Gains and ratios are taken only where the member ahead kept `MIN_INPUT_SHARE` of the
 largest norm or peak, as the project's metrics do.
 """
@@ -93,15 +93,22 @@ VEHICLE_OVERRIDES: dict[str, dict[str, Any]] = {"path_cacc": {"min_gap_m": 1.0}}
 SKIPPED: dict[str, tuple[str, ...]] = {"path_cacc": ("cut_in",)}
 
 
-#: SUMO's own car-following models as followers, driven by SUMO (no actuator lag, no
-#: sensor: they read SUMO's ground truth; SUMO's CACC gets no communicated acceleration):
-#: name -> vType attributes. Time gaps as the project's controllers'.
-SUMO_FOLLOWERS: dict[str, dict[str, str]] = {
-    "SUMO Krauss, tau 1.2 s": {"carFollowModel": "Krauss", "tau": "1.2", "sigma": "0"},
-    "SUMO IDM, T 1.2 s": {"carFollowModel": "IDM", "tau": "1.2"},
-    "SUMO ACC, 1.2 s": {"carFollowModel": "ACC", "tau": "1.2"},
-    "SUMO CACC, 0.5 s": {"carFollowModel": "CACC", "tau": "0.5"},
+#: SUMO's own car-following models as followers (`sumo_driver`: SUMO's model decides the
+#: speed, no actuator lag, no sensor: they read SUMO's ground truth; SUMO's CACC gets no
+#: communicated acceleration, and behind a leader of another model it runs as ACC):
+#: name -> sumo_driver params. Time gaps as the project's controllers'; the standstill
+#: gap (minGap) as the laser follower's.
+SUMO_FOLLOWERS: dict[str, dict[str, Any]] = {
+    "SUMO Krauss, tau 1.2 s": {"car_follow_model": "Krauss", "tau_s": 1.2},
+    "SUMO IDM, T 1.2 s": {"car_follow_model": "IDM", "tau_s": 1.2},
+    "SUMO ACC, 1.2 s": {"car_follow_model": "ACC", "tau_s": 1.2},
+    "SUMO CACC, 0.5 s": {"car_follow_model": "CACC", "tau_s": 0.5},
 }
+for _name, _params in SUMO_FOLLOWERS.items():
+    FOLLOWERS[_name] = (
+        {"type": "sumo_driver", "params": {**_params, "min_gap_m": 2.0}}, [],
+        f"sumo_{_params['car_follow_model']}",
+    )  # fmt: skip
 
 
 def scenario_for(protocol: str, follower: str, folder: Path) -> Path:
@@ -186,130 +193,6 @@ def _verdict(out: Path) -> str:
     return row["string_stability_verdict"] + ("" if pd.isna(gain) else f" ({gain:.2f})")
 
 
-def sumo_followers_run(protocol: str, attrs: dict[str, str], folder: Path) -> dict[str, Any]:
-    """The protocol with SUMO driving the followers (`attrs`: their vType) behind a
-    leader whose speed is set each step from the protocol's profile, in libsumo
-    directly. No spacing errors: the models declare no spacing policy."""
-    import libsumo
-
-    from platoon_sumo.control.speed_profile import SpeedProfileParams, profile_speed
-    from platoon_sumo.sumo.backend import sumo_binary
-
-    source = REPO / "scenarios" / "protocols" / f"{protocol}.yaml"
-    doc = yaml.safe_load(source.read_text())
-    (platoon,) = doc["platoons"]
-    sim, vehicle = doc["simulation"], platoon["vehicle"]
-    profile = SpeedProfileParams(**platoon["leader"]["params"])
-    length, min_gap = 4.5, 2.0
-    common = (
-        f'vClass="passenger" length="{length}" width="1.8" minGap="{min_gap}" '
-        f'accel="{vehicle["max_accel_mps2"]}" decel="{vehicle["max_decel_mps2"]}" '
-        f'emergencyDecel="{vehicle["max_decel_mps2"]}" maxSpeed="{vehicle["max_speed_mps"]}" '
-        'speedFactor="1" speedDev="0"'
-    )
-    follower_attrs = " ".join(f'{k}="{v}"' for k, v in attrs.items())
-    slot_m = length + platoon["spacing_m"]
-    vehicles = [
-        f'<vehicle id="m{i}" type="{"leader" if i == 0 else "follower"}" route="r" depart="0" '
-        f'departLane="0" departPos="{platoon["depart_pos_m"] - i * slot_m}"/>'
-        for i in range(platoon["members"])
-    ]
-    routes = folder / "sumo_followers.rou.xml"
-    routes.write_text(
-        "<routes>\n"
-        f'  <vType id="leader" {common} carFollowModel="Krauss" sigma="0" tau="1.0"/>\n'
-        f'  <vType id="follower" {common} {follower_attrs}/>\n'
-        f'  <route id="r" edges="{" ".join(platoon["route"]["edges"])}"/>\n'
-        + "\n".join(f"  {v}" for v in vehicles)
-        + "\n</routes>\n"
-    )
-    net = (source.parent / doc["network"]["net_file"]).resolve()
-    cut_in = _cut_in(source, doc)
-    if cut_in is not None:
-        routes.write_text(routes.read_text().replace("</routes>", cut_in[1] + "\n</routes>"))
-    extra: list[str] = []
-    libsumo.start([
-        sumo_binary(), "-n", str(net), "-r", ",".join([str(routes), *extra]),
-        "--step-length", str(sim["step_s"]), "--no-step-log", "true", "--no-warnings", "true",
-        "--collision.action", "warn", "--collision.check-junctions", "true", "--seed", "1",
-    ])  # fmt: skip
-    rows, collisions = [], 0
-    ids = [f"m{i}" for i in range(platoon["members"])]
-    try:
-        t0 = None
-        while libsumo.simulation.getTime() < sim["end_s"] - 1e-9:
-            now = libsumo.simulation.getTime()
-            present = set(libsumo.vehicle.getIDList())
-            for vid in libsumo.simulation.getDepartedIDList():
-                if vid in ids:  # a platoon keeps its lane: no lane change of SUMO's own
-                    libsumo.vehicle.setLaneChangeMode(vid, 0)
-            if "m0" in present:
-                t0 = now if t0 is None else t0
-                libsumo.vehicle.setSpeed("m0", profile_speed(profile, now - t0))
-            if cut_in is not None:
-                _cut_in_step(now, cut_in[0], length)
-            libsumo.simulationStep()
-            collisions += libsumo.simulation.getCollidingVehiclesNumber()
-            time_s = libsumo.simulation.getTime()
-            for index, vid in enumerate(ids):
-                if vid not in present:
-                    continue
-                ahead = libsumo.vehicle.getLeader(vid, 300.0)
-                rows.append({
-                    "time_s": time_s, "member_index": index,
-                    "accel_mps2": libsumo.vehicle.getAcceleration(vid),
-                    "speed_mps": libsumo.vehicle.getSpeed(vid),
-                    "ahead_id": ahead[0] if ahead and ahead[0] else None,
-                    "ahead_gap_m": ahead[1] + min_gap if ahead and ahead[0] else np.nan,
-                })  # fmt: skip
-    finally:
-        libsumo.close()
-    steps = pd.DataFrame(rows)
-    steps["jerk_mps3"] = steps.groupby("member_index").accel_mps2.diff() / sim["step_s"]
-    start = float(doc["outputs"]["metrics_start_s"])
-    # SUMO's models declare no spacing policy (IDM's equilibrium gap is not s0 + v T at
-    # these speeds): no spacing error
-    steps["spacing_error_m"] = np.nan
-    steps.to_csv(folder / "steps.csv", index=False)
-    return {**metrics(steps, start), "collisions": collisions}
-
-
-#: Where the cut-in protocol's car appears: this far behind the leader's rear
-#: (scenarios/protocols/cut_in.rou.xml places it for the project's leader, which is at a
-#: known position then; SUMO's own leader launches faster, so the tool places it).
-CUT_IN_BEHIND_LEADER_M = 3.0
-
-
-def _cut_in(source: Path, doc: dict[str, Any]) -> tuple[float, str] | None:
-    """(time, vType XML) of the protocol's cut-in car, if it has one."""
-    import xml.etree.ElementTree as ET
-
-    for name in doc.get("traffic", {}).get("route_files", []):
-        root = ET.parse(source.parent / name).getroot()
-        vehicle, vtype = root.find("vehicle"), root.find("vType")
-        if vehicle is not None and vtype is not None:
-            return float(vehicle.get("depart", "0")), ET.tostring(vtype, encoding="unicode")
-    return None
-
-
-def _cut_in_step(now: float, depart_s: float, length_m: float) -> None:
-    """One second before the cut-in the car drives beside the platoon in the left lane;
-    at the cut-in it is moved into the platoon's lane behind the leader."""
-    import libsumo
-
-    leader = libsumo.vehicle.getLanePosition("m0")
-    if abs(now - (depart_s - 1.0)) < 1e-6:
-        libsumo.vehicle.add(
-            "cutter", "r", typeID="cutter", departLane="1", departPos=str(leader - 30.0),
-            departSpeed=str(libsumo.vehicle.getSpeed("m0")),
-        )  # fmt: skip
-        libsumo.vehicle.setLaneChangeMode("cutter", 0)
-    elif abs(now - depart_s) < 1e-6:
-        lane = libsumo.vehicle.getLaneID("m0")
-        libsumo.vehicle.moveTo("cutter", lane, leader - length_m - CUT_IN_BEHIND_LEADER_M)
-        libsumo.vehicle.setLaneChangeMode("cutter", 1621)  # SUMO's default from now on
-
-
 def run_all(work: Path) -> pd.DataFrame:
     from platoon_sumo.runner import load_plan, run
 
@@ -320,7 +203,7 @@ def run_all(work: Path) -> pd.DataFrame:
         for follower, (block, _, _) in FOLLOWERS.items()
         if protocol not in SKIPPED.get(block["type"], ())
     ]
-    total = len(runs) + len(PROTOCOLS) * len(SUMO_FOLLOWERS)
+    total = len(runs)
     for protocol in PROTOCOLS:
         for follower, (_, _, mode) in FOLLOWERS.items():
             if (protocol, follower) not in runs:
@@ -332,14 +215,6 @@ def run_all(work: Path) -> pd.DataFrame:
             run(plan, force=True)
             row = {"protocol": protocol, "follower": follower}
             row |= project_run(folder / "out", plan.scenario.outputs.metrics_start_s, mode)
-            rows.append(row)
-            _progress(len(rows), total, protocol, follower, began)
-        for follower, attrs in SUMO_FOLLOWERS.items():
-            folder = work / protocol / _folder_name(follower)
-            folder.mkdir(parents=True, exist_ok=True)
-            began = time.process_time()
-            row = {"protocol": protocol, "follower": follower}
-            row |= sumo_followers_run(protocol, attrs, folder)
             rows.append(row)
             _progress(len(rows), total, protocol, follower, began)
     return pd.DataFrame(rows)
@@ -370,8 +245,7 @@ def figures(work: Path, out: Path) -> list[Path]:
         fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), sharex=True, sharey=True)
         for ax, follower in zip(axes.flat, FIGURE_FOLLOWERS, strict=True):
             folder = work / protocol / _folder_name(follower)
-            source = folder / "out" / "trajectories.csv"
-            rows = pd.read_csv(source if source.exists() else folder / "steps.csv")
+            rows = pd.read_csv(folder / "out" / "trajectories.csv")
             rows = rows[rows.time_s >= start - 10.0]
             members = sorted(rows.member_index.unique())
             colours = plt.cm.viridis(np.linspace(0.0, 0.85, max(len(members) - 1, 1)))

@@ -117,6 +117,30 @@ class Command:
     `lane_change` and by the other actuations."""
 
 
+@dataclass(frozen=True)
+class SumoCarFollowing:
+    """A controller's request that SUMO's own car-following model drive the member's
+    speed: the model and the vehicle-type attributes it needs. The member gets a type of
+    its own with them, and its speed is handed back to SUMO every step (the command is
+    then only what the supervisor checks, never sent)."""
+
+    model: str
+    """SUMO's `carFollowModel` (Krauss, IDM, ACC, CACC, ...)."""
+    tau_s: float
+    """The type's `tau` [s]."""
+    min_gap_m: float | None
+    """The type's `minGap` [m]; None: the platoon vehicle's."""
+    attributes: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    """Further vType attributes of the model, by SUMO's names."""
+
+
+def sumo_car_following(cls: type, params: Any) -> SumoCarFollowing | None:
+    """What a controller class asks of SUMO's car following (its optional
+    `sumo_car_following(params)`), or None: the controller commands the speed itself."""
+    hook = getattr(cls, "sumo_car_following", None)
+    return hook(params) if callable(hook) else None
+
+
 @runtime_checkable
 class Controller(Protocol):
     """A platoon vehicle's brain. `Params` is a frozen dataclass loaded from the scenario."""

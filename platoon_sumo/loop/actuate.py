@@ -1,6 +1,8 @@
 """Actuation: each platoon's executed commands pass its powertrain (actuator lag and jerk
 bound, `vehicles.powertrain_speed`) and go to its actuator (planar, lane or sublane, see
-`platoon_sumo.actuation`); after the SUMO step, SUMO-driven members are read back."""
+`platoon_sumo.actuation`), except the speed of a member whose controller leaves it to
+SUMO's car-following model (`sumo_driver`); after the SUMO step, SUMO-driven members are
+read back."""
 
 from __future__ import annotations
 
@@ -17,6 +19,10 @@ from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate, powertrai
 #: SUMO's speed this far below what the command and the acceleration limit allowed
 #: means SUMO's safety layer acted [m/s].
 SUMO_CAP_TOLERANCE_MPS = 0.01
+#: The speed sent for a member whose controller leaves the speed to SUMO's
+#: car-following model: SUMO's `setSpeed(-1)`, its own model again (never below what
+#: SUMO drove, so never a SUMO cap in `ReadBack`).
+SUMO_DECIDES = -1.0
 
 
 def _yaw_rate(m: Member, dt_s: float) -> float:
@@ -40,6 +46,9 @@ class Actuate:
                 speed_cmd = powertrain_speed(
                     kin[:, SPEED], kin[:, ACCEL], speed_cmd, powertrain, platoon.limits, dt_s
                 )
+            # SUMO's car-following model decides these members' speed (`sumo_driver`)
+            by_sumo = np.array([m.plan.sumo_car_following is not None for m in group])
+            speed_cmd[by_sumo] = SUMO_DECIDES
             for m, sent in zip(group, speed_cmd.tolist(), strict=True):
                 m.speed_sent_mps = sent
             batch = ActuationBatch(

@@ -57,7 +57,7 @@ def _hand_over(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]
     actuator = ACTUATORS.get(platoon.config.actuation)
     for member in members:
         ctx.backend.add_vehicle(
-            member.vehicle_id, platoon.edges, platoon.type_id, platoon.depart_lane,
+            member.vehicle_id, platoon.edges, platoon.type_id_of(member), platoon.depart_lane,
             member.depart_pos_m, sumo_drives=actuator.sumo_drives, steers=actuator.steers,
         )  # fmt: skip
         ctx.waiting[member.vehicle_id] = member

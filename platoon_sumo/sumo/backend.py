@@ -13,6 +13,7 @@ import functools
 import itertools
 import math
 import os
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -74,6 +75,20 @@ RED_QUEUE_M = 250.0
 LANE_CHOICE_RESERVE_S = 6.0
 #: [m] see `LANE_CHOICE_RESERVE_S`.
 LANE_CHOICE_RESERVE_M = 50.0
+
+
+def write_car_following_types(path: Path, types: dict[str, dict[str, str]]) -> Path:
+    """An additional file with one vehicle type per id in `types`, each with the
+    attributes given (`carFollowModel` and the model's parameters): the bases that
+    `SumoBackend.add_vehicle_type` copies, since libsumo can set every attribute of a
+    type but its car-following model."""
+    root = ET.Element("additional")
+    for type_id, attributes in types.items():
+        ET.SubElement(root, "vType", {"id": type_id, **attributes})
+    ET.indent(root)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(root).write(path, encoding="unicode", xml_declaration=False)
+    return path
 
 
 def sumo_binary(name: str = "sumo") -> str:
@@ -395,14 +410,16 @@ class SumoBackend:
         vclass: str,
         tau_s: float = 1.0,
         speed_factor: float | None = None,
+        base_type: str = "DEFAULT_VEHTYPE",
     ) -> None:
         """A SUMO type for platoon vehicles, so SUMO's drivers see their true size; without
         driver imperfection, and with `tau_s` for SUMO's safe speed in lane actuation.
         `speed_factor`: every vehicle's factor on lane speed limits, without spread (None:
-        drawn per vehicle as for SUMO's default type)."""
+        drawn per vehicle as for SUMO's default type). `base_type`: the type copied, with
+        its car-following model (libsumo cannot set a model: `write_car_following_types`)."""
         vt = self._api.vehicletype
         try:
-            vt.copy("DEFAULT_VEHTYPE", type_id)
+            vt.copy(base_type, type_id)
             vt.setVehicleClass(type_id, vclass)
             vt.setLength(type_id, length_m)
             vt.setWidth(type_id, width_m)
@@ -500,7 +517,8 @@ class SumoBackend:
         return failed
 
     def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: NDArray[np.float64]) -> None:
-        """Speed commands for SUMO-driven (lane actuation) platoon vehicles, next step."""
+        """Speed commands for SUMO-driven (lane actuation) platoon vehicles, next step; a
+        negative speed gives the vehicle's speed back to its type's car-following model."""
         veh = self._api.vehicle
         for vid, speed in zip(vehicle_ids, speed_mps, strict=True):
             veh.setSpeed(vid, float(speed))
