@@ -68,6 +68,9 @@ class Decide:
             m.executed, enforced = supervise(
                 m.platoon.config.supervisor, obs, command, m.actuator.sumo_drives
             )
-            if enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
+            # SUMO's model drives a `sumo_driver` member: the supervisor's state is a
+            # check there, and nothing brakes, so no emergency braking is reported
+            ours = m.plan.sumo_car_following is None
+            if ours and enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
                 ctx.emit(EventKind.EMERGENCY_BRAKING, m)
             m.supervisor_state = enforced

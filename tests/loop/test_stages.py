@@ -188,6 +188,28 @@ def test_decide_supervises_and_counts_an_emergency_once_per_episode(write_scenar
     assert ctx.events == []  # the same episode: counted when it began
 
 
+def test_a_member_sumo_drives_is_only_checked_never_reported_braking(write_scenario):
+    """`sumo_driver`: SUMO's model drives the speed, so the supervisor's emergency is a
+    mark in its state, not an emergency braking event (nothing braked), and the speed
+    handed to SUMO stays its own model's (-1)."""
+    backend = FakeBackend()
+    sumo_driver = {"type": "sumo_driver", "params": {"car_follow_model": "Krauss"}}
+    ctx = context(plan(write_scenario, members=1, leader=sumo_driver), backend)
+    backend.add_human("stopped", 110.0, 0.0)  # 5.5 m ahead of the leader's bumper
+    departed(ctx, backend)
+    backend.vehicles["p.0"].speed_mps = 15.0  # SUMO's model drove it up fast
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    RouteProgress()(ctx)
+    ctx.events = []
+    Decide()(ctx)
+    (m,) = list(ctx.fleet)
+    assert m.supervisor_state == "emergency"
+    assert ctx.events == []
+    Actuate()(ctx)
+    assert backend.speed_commands == {"p.0": -1.0}
+
+
 def test_a_failing_controller_is_named_with_its_vehicle_and_time(write_scenario):
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1, leader=SCRIPTED), backend)
