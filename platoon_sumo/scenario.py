@@ -364,7 +364,7 @@ class VehicleConfig:
     actuator_lag_s: float | None = bounded(None, ge=0, le=10)
     """First-order lag between the commanded and the achieved acceleration [s] (engine
     and brakes; Plexe's engine lag, 0.5 s by default there); 0: none. null: the vehicle
-    model's default, none for both models for now (cars: docs/baselines.md, Open)."""
+    model's default: 0.1 s for a bicycle (cars), none for a unicycle (the paper's robots)."""
     max_jerk_mps3: float | None = bounded(None, gt=0, le=10_000)
     """Largest change of the achieved acceleration per second [m/s³]; null: unbounded."""
 

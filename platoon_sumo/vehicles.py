@@ -161,7 +161,7 @@ class Unicycle:
 @VEHICLE_MODELS.register("bicycle")
 class Bicycle:
     """Kinematic bicycle about the rear axle: yaw rate = v tan(delta) / L, |delta| <= max_steer.
-    No actuator lag by default yet (docs/baselines.md, Open).
+    A first-order actuator lag of 0.1 s by default (Ploeg et al.'s test vehicles).
 
     The commanded yaw rate maps to the steering angle delta = atan(omega L / v); clipping
     delta to max_steer and mapping back is the same as clipping omega to
@@ -170,9 +170,7 @@ class Bicycle:
     """
 
     name: ClassVar[str] = "bicycle"
-    # A car's lag (0.1 s: Ploeg et al.'s test vehicles) fails the A10 acceptance test at
-    # its seed; it waits for issue 11 (docs/baselines.md, Open).
-    default_actuator_lag_s: ClassVar[float] = 0.0
+    default_actuator_lag_s: ClassVar[float] = 0.1
 
     def step(
         self,

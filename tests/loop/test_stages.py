@@ -3,6 +3,7 @@ from the step context and what it writes back, events included."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
 from platoon_sumo.runner import load_plan
 from platoon_sumo.scenario import RunPlan
+from platoon_sumo.vehicles import Bicycle
 from tests.fakes import LANE_Y_M, FakeBackend, FakeVehicle
 from tests.helpers import REPO
 
@@ -64,7 +66,9 @@ def plan(write_scenario, actuation: str = "lane", members: int = 2, **extra: Any
         "platoons": [{
             "id": "p", "route": {"edges": ["WE"]}, "members": members, "spacing_m": 5.0,
             "depart_pos_m": 100.0, "actuation": actuation,
-            "vehicle": {"model": "bicycle", "length_m": 4.5, "width_m": 1.8},
+            # an ideal powertrain: the commands reach the actuator unchanged
+            "vehicle": {"model": "bicycle", "length_m": 4.5, "width_m": 1.8,
+                        "actuator_lag_s": 0.0},
             "leader": {"type": "route_following"}, "follower": {"type": "route_following"},
             **extra,
         }],
@@ -232,6 +236,19 @@ def test_lane_actuation_hands_speeds_and_lane_requests_to_sumo(write_scenario):
     Actuate()(ctx)
     assert backend.speed_commands == {"p.0": 7.0, "p.1": 7.0}
     assert backend.lane_requests == {"p.1": 1}
+
+
+def test_a_cars_default_powertrain_lags_the_speed_sent(write_scenario):
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, vehicle={"model": "bicycle"}), backend)
+    departed(ctx, backend)
+    for m in ctx.fleet:
+        m.executed = Command(7.0)
+    Actuate()(ctx)
+    # from standstill the lag lets through 1 - e^(-dt / lag) of the acceleration asked for
+    lag_s, limits = Bicycle.default_actuator_lag_s, ctx.run.plan.platoons[0].limits
+    sent = (1.0 - math.exp(-0.1 / lag_s)) * limits.max_accel_mps2 * 0.1
+    assert backend.speed_commands == pytest.approx({"p.0": sent, "p.1": sent})
 
 
 def test_read_back_names_sumo_capping_the_speed_once_per_episode(write_scenario):

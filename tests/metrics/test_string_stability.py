@@ -71,10 +71,10 @@ def test_stable_and_unstable_tunings_by_their_frequency_response(runs):
         assert p["intact_share"] == 1.0 and p["collisions"] == 0
         assert p["frequency_response"] == "sinusoid"
         assert p["max_frequency_gain_hz"] == pytest.approx(0.1, rel=0.01)
-    # the linear model of the spacing loop gives 0.80 and 1.48 at 0.1 Hz; the laser
-    # follower's tracking lag adds a few per cent
+    # the linear model of the spacing loop with the cars' 0.1 s actuator lag gives 0.82
+    # and 1.58 at 0.1 Hz; the laser follower's tracking lag adds a little
     assert 0.8 < stable["max_frequency_gain"] < 0.9
-    assert 1.45 < unstable["max_frequency_gain"] < 1.6
+    assert 1.5 < unstable["max_frequency_gain"] < 1.7
     for setting, bound in (("stable", 0.9), ("unstable", 1.4)):
         followers = runs[setting]["string_stability"][setting]["followers"]
         assert len(followers) == 4
