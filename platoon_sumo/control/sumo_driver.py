@@ -11,8 +11,9 @@ type of its own, `platoon_<id>_<role>`, with that `carFollowModel` and its attri
 at the start of the run), and each step its speed is handed back to SUMO
 (`setSpeed(-1)`). The command returned here is never sent: it asks for the speed the
 member drives now, so the supervisor, which runs on every member, only checks it (its
-state and events mark the steps where its bounds lay below the speed SUMO's model held,
-e.g. `emergency` close behind the vehicle ahead); SUMO's own safe speed, lights and
+state marks the steps where its bounds lay below the speed SUMO's model held, e.g.
+`emergency` close behind the vehicle ahead, and no emergency braking is reported, since
+nothing brakes); SUMO's own safe speed, lights and
 right of way drive the member, as for its other cars. The vehicle's powertrain
 (`actuator_lag_s`, `max_jerk_mps3`) does not apply: SUMO's models have none.
 
