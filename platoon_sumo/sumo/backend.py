@@ -537,7 +537,7 @@ class SumoBackend:
             if not lane_id or lane_id.startswith(":"):
                 continue
             edge = self._lane_edge(lane_id)
-            lane = veh.getLaneIndex(vid) + direction
+            lane = int(lane_id[len(edge) + 1 :]) + direction  # a lane's id: <edge>_<index>
             best = self._best_lanes(vid, edge).get(f"{edge}_{lane}")
             if best is None:  # no such lane, or not one SUMO's route planning knows
                 continue
