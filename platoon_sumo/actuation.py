@@ -23,7 +23,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.geometry import wrap_angle
+from platoon_sumo.geometry import sideways_conflicts, wrap_angle
 from platoon_sumo.registry import Registry
 from platoon_sumo.vehicles import KinematicState, MotionLimits, VehicleModel
 
@@ -73,6 +73,23 @@ class ActuationBatch:
     dt_s: float
     keep_lane: NDArray[np.bool_] | None = None
     """Per vehicle: hold the current lane (`Command.keep_lane`); None: no one asks."""
+    sidestep_m: FloatArray | None = None
+    """Per vehicle: the sideways shift (left +) that clears a standing car reaching into
+    its way, one of the two in a junction (`ObstaclesAhead`); 0: none. None: no one
+    has one."""
+    surroundings: Surroundings | None = None
+    """Every vehicle's footprint, to keep sideways moves off the cars beside."""
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """Every vehicle in the network after the last step: (N, 5) rectangles (centre,
+    yaw, length, width; `platoon_sumo.geometry`) and speeds, and the batch's rows in
+    them (-1: not in the network)."""
+
+    footprints: FloatArray
+    speed_mps: FloatArray
+    rows: IntArray
 
 
 @dataclass(frozen=True)
@@ -150,6 +167,11 @@ class LaneActuation:
 #: Sublane actuation: the heading asked for is kept within this angle of the lane
 #: [rad] (the lateral speed grows with its tangent).
 MAX_LANE_ANGLE_RAD = math.radians(60.0)
+#: Sublane actuation: a sideways move is checked against the cars around over this
+#: horizon [s] with this clearance [m] (`sideways_conflicts`).
+SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
+#: Sublane actuation: a sidestep inside a junction runs at most this fast [m/s].
+SIDESTEP_SPEED_MPS = 0.5
 
 
 @ACTUATORS.register("sublane")
@@ -185,7 +207,15 @@ class SublaneActuation:
         grids, 3.9 m the bicycle's rear axle), and the controllers steer the rear axle,
         which SUMO's body (front on the lane, back along the chord) puts inside the
         turn. The heading that lagged the lane's, turned into lateral speed, carried
-        cars 2 m wide out of the junction into the next lane."""
+        cars 2 m wide out of the junction into the next lane. A sidestep
+        (`batch.sidestep_m`) goes before both: a car standing in or at a junction with
+        its corner in the member's way, which would otherwise wait for a car that
+        waits for it.
+
+        No sideways move goes into a car beside: one that would bring the vehicle,
+        `SIDEWAYS_CLEARANCE_M` larger, deeper into another within
+        `SIDEWAYS_HORIZON_S` is not made (the lateral speed is 0; SUMO's drivers let
+        our commands through as they come and do not check them)."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
         speed = np.maximum(batch.state.speed_mps, 0.0)
         new = batch.model.step(
@@ -198,7 +228,18 @@ class SublaneActuation:
         lateral = speed * np.tan(angle) + batch.length_m * np.sin(wanted - angle) / (
             np.cos(angle) * batch.dt_s
         )
-        # in a junction SUMO's lane steers: the lateral offset is held
+        # in a junction SUMO's lane steers: the lateral offset is held, or sidesteps
         lateral[sumo.in_junctions(batch.vehicle_ids)] = 0.0
+        if batch.sidestep_m is not None:
+            side = batch.sidestep_m != 0.0
+            step = batch.sidestep_m[side] / batch.dt_s
+            lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
+        around = batch.surroundings
+        if around is not None:
+            blocked = sideways_conflicts(
+                around.footprints, around.speed_mps, around.rows,
+                lateral * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
+            )  # fmt: skip
+            lateral[blocked] = 0.0
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)
         return ActuationResult(None, {})

@@ -7,13 +7,14 @@ import itertools
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import corridor_intrusions, empty_outputs
-from platoon_sumo.loop.obstacles import crosses_before_arrival
+from platoon_sumo.loop.obstacles import crosses_before_arrival, sidestep_clearing
 from platoon_sumo.path import RoutePath
 
 
@@ -111,3 +112,30 @@ def test_a_car_crossing_ahead_is_no_obstacle_if_it_has_left_before_arrival():
     assert crosses_before_arrival(10.0, 0.0, 2.2, 8.0, 0.0, 4.5, 1.8)
     # at 5 m/s sideways a crossing car could still stop inside the corridor (2.8 m)
     assert not crosses_before_arrival(10.0, 0.0, 2.2, 5.0, 0.0, 4.5, 1.8)
+
+
+# ---------------------------------------------------------------- sidesteps
+
+#: A straight path along +x in a 3.2 m lane; a car 1.8 m wide (corridor 1.1 m each side
+#: with its 0.2 m margin) with its front bumper at s 10, on the path.
+STRAIGHT = RoutePath.from_pieces(
+    [np.array([[0.0, 0.0], [100.0, 0.0]])], ["e_0"], [14.0], [3.2], 0.5
+)
+
+
+def sidestep(rect, offset_m=0.0):
+    return sidestep_clearing(STRAIGHT, 10.0, offset_m, 20.0, 1.1, 0.9, np.array(rect))
+
+
+def test_a_sidestep_clears_a_car_reaching_in_from_one_side():
+    """Its side 0.15 m inside the body's left edge (y 0.75): the corridor's left edge
+    goes to 0.75 - 0.05, a shift of -0.4 m; from the right, the mirror image."""
+    assert sidestep((15.0, 1.65, 0.0, 4.5, 1.8)) == pytest.approx(-0.4, abs=0.01)
+    assert sidestep((15.0, -1.65, 0.0, 4.5, 1.8)) == pytest.approx(0.4, abs=0.01)
+    assert sidestep((15.0, 1.65, 0.0, 4.5, 1.8), offset_m=-0.1) == pytest.approx(-0.3, abs=0.01)
+
+
+def test_no_sidestep_across_the_middle_beyond_the_lane_or_behind_the_front():
+    assert sidestep((15.0, 0.0, 1.2, 4.5, 1.8)) == 0.0  # across the corridor
+    assert sidestep((15.0, 1.1, 0.0, 4.5, 1.8)) == 0.0  # 0.7 m in: beyond the lane's room
+    assert sidestep((5.0, 1.65, 0.0, 4.5, 1.8)) == 0.0  # beside the body, not ahead

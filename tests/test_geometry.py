@@ -20,6 +20,7 @@ from platoon_sumo.geometry import (
     rectangle_corners,
     rectangles_crossing_segments,
     rectangles_overlap,
+    sideways_conflicts,
     sumo_angle_deg_to_yaw,
     wrap_angle,
     yaw_to_sumo_angle_deg,
@@ -323,3 +324,65 @@ def test_rectangles_crossing_segments_known_cases():
     )
     pairs = rectangles_crossing_segments(box, segments)
     assert pairs.tolist() == [[0, 0], [0, 1]]
+
+
+# ---------------------------------------------------------------- sideways moves
+
+#: A car at the origin facing east (front bumper at x 2.25) and its neighbours.
+OWN = (0.0, 0.0, 0.0, 4.5, 1.8)
+
+
+def conflicts(others, shift, speed=0.0, other_speed=0.0, margin=0.2):
+    rects = np.array([OWN, *others])
+    speeds = np.array([speed] + [other_speed] * len(others))
+    return bool(sideways_conflicts(rects, speeds, np.array([0]), np.array([shift]), 0.5, margin)[0])
+
+
+def test_a_move_towards_a_car_beside_conflicts_and_one_away_does_not():
+    beside_left = (0.5, 2.5, 0.0, 4.5, 1.8)  # 0.7 m clear of our left side
+    assert conflicts([beside_left], shift=0.6)
+    assert not conflicts([beside_left], shift=0.4)  # stays clear with 0.2 m margin
+    assert not conflicts([beside_left], shift=-0.6)
+
+
+def test_driving_on_towards_the_car_ahead_is_no_sideways_conflict():
+    """A car ahead in the lane is closer after the horizon; a small steering correction
+    changes nothing about that."""
+    ahead = (6.5, 0.0, 0.0, 4.5, 1.8)  # 2 m gap, we close it at 8 m/s
+    assert not conflicts([ahead], shift=0.1, speed=8.0)
+    assert not conflicts([ahead], shift=-0.1, speed=8.0)
+
+
+def test_steering_into_a_car_ahead_in_the_next_lane_conflicts():
+    """Where the highway follower steered into the car ahead-right (`highway`, 2026-11-26)."""
+    ahead_right = (5.0, -2.3, 0.0, 5.0, 1.8)
+    assert conflicts([ahead_right], shift=-0.5, speed=4.0, other_speed=3.0)
+    assert not conflicts([ahead_right], shift=-0.5, speed=0.0, other_speed=3.0)  # it leaves
+
+
+def test_vehicles_outside_the_world_or_not_moving_sideways_never_conflict():
+    rects = np.array([OWN, (0.0, 1.5, 0.0, 4.5, 1.8)])
+    out = sideways_conflicts(rects, np.zeros(2), np.array([-1, 0]), np.array([1.0, 0.0]), 0.5, 0.2)
+    assert not out.any()
+
+
+@given(st.lists(rectangle, min_size=1, max_size=4), st.floats(-2.0, 2.0, allow_nan=False),
+       st.floats(0.0, 0.5, allow_nan=False))  # fmt: skip
+@SETTINGS
+def test_sideways_conflicts_against_shapely(others, shift, margin):
+    """Oracle: shapely polygons of the enlarged car before and after the shift (nothing
+    moves on: speeds 0). No overlap after the shift: no conflict. A car the unshifted
+    one does not touch and the shifted one overlaps by more than 2 mm (its polygon,
+    shrunk by 2 mm, still meets it): a conflict."""
+    assume(shift != 0.0)
+    rects = np.array([OWN, *others])
+    hit = sideways_conflicts(rects, np.zeros(len(rects)), np.array([0]), np.array([shift]),
+                             0.5, margin)[0]  # fmt: skip
+    length, width = OWN[3] + 2 * margin, OWN[4] + 2 * margin
+    before = polygon((OWN[0], OWN[1], OWN[2], length, width))
+    after = polygon((OWN[0], OWN[1] + shift, OWN[2], length, width))
+    others_ = [polygon(o) for o in others]
+    if all(after.intersection(o).area <= 1e-9 for o in others_):
+        assert not hit
+    if any(before.distance(o) > 0.0 and after.buffer(-0.002).intersects(o) for o in others_):
+        assert hit

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from platoon_sumo.actuation import ActuationBatch
+from platoon_sumo.actuation import ActuationBatch, Surroundings
 from platoon_sumo.errors import PlatoonSumoError, PluginError
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
@@ -35,7 +35,8 @@ def _yaw_rate(m: Member, dt_s: float) -> float:
 
 class Actuate:
     def __call__(self, ctx: StepContext) -> None:
-        fleet, dt_s = ctx.fleet, ctx.dt_s
+        fleet, dt_s, world = ctx.fleet, ctx.dt_s, ctx.world
+        footprints = ctx.footprints if len(ctx.footprints) == len(world) else None
         for group in fleet.by_platoon().values():
             platoon, actuator = group[0].platoon, group[0].actuator
             rows = fleet.rows(group)
@@ -58,6 +59,14 @@ class Actuate:
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
                 keep_lane=np.array([m.executed.keep_lane for m in group], dtype=bool),
+                sidestep_m=np.array([m.sidestep_m for m in group]),
+                surroundings=None
+                if footprints is None
+                else Surroundings(
+                    footprints,
+                    world.speed_mps,
+                    np.array([world.index.get(m.id, -1) for m in group], dtype=np.int64),
+                ),
                 front_offset_m=platoon.config.vehicle.front_offset_m,
                 length_m=platoon.config.vehicle.length_m,
                 limits=platoon.limits,

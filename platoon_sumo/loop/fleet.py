@@ -83,6 +83,9 @@ class Member:
     vehicle_ahead: VehicleAhead | None = None
     obstacle_ahead: VehicleAhead | None = None
     """Nearest footprint reaching into the corridor ahead (`loop.obstacles`)."""
+    sidestep_m: float = 0.0
+    """Sideways shift (left +) that clears a standing car reaching into the corridor,
+    one of the two in a junction (`loop.obstacles`); 0: none."""
     sensors: dict[str, Any] = field(default_factory=dict)
     """Latest message of each sensor, by name."""
     last_sensed_s: dict[str, float] = field(default_factory=dict)

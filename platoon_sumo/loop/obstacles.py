@@ -11,6 +11,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, empty_outputs
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
@@ -29,6 +30,13 @@ CROSSING_DECEL_MPS2 = 4.5
 #: The corridor is a comfortable stop from the current speed (the supervisor's
 #: `comfort_decel_mps2`) long, plus this many seconds of driving and this many metres.
 LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
+#: A car slower than this [m/s] reaching into a member's corridor from one side, with
+#: either of them inside a junction, is passed by a sidestep when the lane has room
+#: (`sidestep_clearing`).
+STANDING_MPS = 0.3
+#: The sidestep clears the corridor by this much [m] and keeps the body this far
+#: inside the lane's edges [m]; the outline is sampled every `OUTLINE_STEP_M`.
+SIDESTEP_EXTRA_M, LANE_EDGE_CLEARANCE_M, OUTLINE_STEP_M = 0.05, 0.1, 0.25
 
 
 class ObstaclesAhead:
@@ -68,6 +76,7 @@ class ObstaclesAhead:
         world, rects = ctx.world, ctx.footprints
         for m in ctx.fleet:
             m.obstacle_ahead = None
+            m.sidestep_m = 0.0
         members = [m for m in ctx.fleet if m.id in world.index]
         if not members or len(world.ids) < 2:
             return
@@ -123,6 +132,14 @@ class ObstaclesAhead:
                 continue
             speed_along = max(float(world.speed_mps[i]) * cos, 0.0)
             m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
+            in_junction = world.lane_ids[selves[j]].startswith(":") or world.lane_ids[i].startswith(
+                ":"
+            )
+            if world.speed_mps[i] < STANDING_MPS and in_junction:
+                m.sidestep_m = sidestep_clearing(
+                    m.path, float(table[j, 1]), float(table[j, 2]), float(table[j, 3]),
+                    float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
+                )  # fmt: skip
 
 
 def crosses_before_arrival(
@@ -149,3 +166,43 @@ def crosses_before_arrival(
     if sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across:
         return False
     return across / sideways < gap_m / max(speed_mps, 1e-3)
+
+
+def sidestep_clearing(
+    path: RoutePath,
+    s_m: float,
+    offset_m: float,
+    length_m: float,
+    corridor_half_m: float,
+    body_half_m: float,
+    rect: FloatArray,
+) -> float:
+    """The sideways shift (left +) after which `rect` no longer reaches into the
+    corridor (from the front bumper at arc length `s_m`, `length_m` long, `offset_m`
+    beside the path, `corridor_half_m` each side); 0 when it reaches in from both sides
+    or across the middle, or when the shifted body would leave its lane.
+
+    SUMO lets a car wait inside a junction at a point its network puts there, and in
+    networks whose internal lanes overlap (the unrepaired DRT district) its corner can
+    stand a few centimetres in our car's way: it waits for our car, which waits for it.
+    SUMO's own cars drive through such a corner; ours go round it, within the lane."""
+    corners = rectangle_corners(rect[None, :])[0]
+    points = []
+    for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        n = max(2, math.ceil(math.hypot(*(b - a)) / OUTLINE_STEP_M) + 1)
+        points.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
+    outline = np.concatenate(points)
+    sl = np.array([path.project_sl(float(x), float(y), s_m) for x, y in outline])
+    s, d = sl[:, 0], sl[:, 1]
+    inside = (s >= s_m) & (s <= s_m + length_m) & (np.abs(d - offset_m) < corridor_half_m)
+    if not inside.any():
+        return 0.0
+    d = d[inside]
+    if (d > offset_m).all():
+        target = float(d.min()) - corridor_half_m - SIDESTEP_EXTRA_M
+    elif (d < offset_m).all():
+        target = float(d.max()) + corridor_half_m + SIDESTEP_EXTRA_M
+    else:
+        return 0.0
+    room = 0.5 * path.lane_width_near(s_m) - body_half_m - LANE_EDGE_CLEARANCE_M
+    return target - offset_m if abs(target) <= room else 0.0
