@@ -27,3 +27,18 @@ def build_net(
         cmd += ["-x", str(folder / "x.con.xml")]
     subprocess.run(cmd, check=True, capture_output=True)
     return net
+
+
+def add_standing_car(vehicle_id: str, edges: list[str], width_m: float, depart_lane: str,
+                     depart_pos: str) -> None:  # fmt: skip
+    """Insert a SUMO car of `width_m` on `edges` that obeys only TraCI (no speed or
+    lane-change checks of its own): a test hook then stands it where it wants."""
+    import libsumo
+
+    libsumo.route.add(f"{vehicle_id}_route", edges)
+    libsumo.vehicletype.copy("DEFAULT_VEHTYPE", f"{vehicle_id}_type")
+    libsumo.vehicletype.setWidth(f"{vehicle_id}_type", width_m)
+    libsumo.vehicle.add(vehicle_id, f"{vehicle_id}_route", typeID=f"{vehicle_id}_type",
+                        depart="now", departLane=depart_lane, departPos=depart_pos)  # fmt: skip
+    libsumo.vehicle.setSpeedMode(vehicle_id, 0)
+    libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)

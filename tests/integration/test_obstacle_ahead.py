@@ -15,7 +15,7 @@ import platoon_sumo.cosim as cosim
 from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import URBAN_GRID_NET
+from tests.helpers import URBAN_GRID_NET, add_standing_car
 
 BLOCKER = "blocker"
 #: The blocker's front bumper on A1B1's left lane (centre y 298.4, nearer than the right
@@ -33,13 +33,7 @@ class Blocker(StepHook):
 
     def on_step(self, record: StepRecord) -> None:
         if self.state == "waiting" and record.time_s >= self.from_s:
-            libsumo.route.add("blocker_route", ["A1B1", "B1C1"])
-            libsumo.vehicletype.copy("DEFAULT_VEHTYPE", "wide")
-            libsumo.vehicletype.setWidth("wide", WIDTH_M)
-            libsumo.vehicle.add(BLOCKER, "blocker_route", typeID="wide", depart="now",
-                                departLane="1", departPos="80")  # fmt: skip
-            libsumo.vehicle.setSpeedMode(BLOCKER, 0)
-            libsumo.vehicle.setLaneChangeMode(BLOCKER, 0)
+            add_standing_car(BLOCKER, ["A1B1", "B1C1"], WIDTH_M, "1", "80")
             self.state = "standing"
         if self.state == "standing":
             if record.time_s >= self.until_s:

@@ -16,7 +16,7 @@ import pytest
 from platoon_sumo.loop import obstacles
 from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import URBAN_GRID_NET
+from tests.helpers import URBAN_GRID_NET, add_standing_car
 
 BLOCKER = "blocker"
 #: The blocker: 3 m wide, facing west inside junction B1 (x 289.6 to 310.4) on the
@@ -38,13 +38,7 @@ class Blocker(StepHook):
         if record.time_s < self.from_s:
             return
         if not self.placed:
-            libsumo.route.add("blocker_route", ["C1B1", "B1A1"])
-            libsumo.vehicletype.copy("DEFAULT_VEHTYPE", "wide")
-            libsumo.vehicletype.setWidth("wide", WIDTH_M)
-            libsumo.vehicle.add(BLOCKER, "blocker_route", typeID="wide", depart="now",
-                                departLane="1", departPos="150")  # fmt: skip
-            libsumo.vehicle.setSpeedMode(BLOCKER, 0)
-            libsumo.vehicle.setLaneChangeMode(BLOCKER, 0)
+            add_standing_car(BLOCKER, ["C1B1", "B1A1"], WIDTH_M, "1", "150")
             self.placed = True
         libsumo.vehicle.setSpeed(BLOCKER, 0.0)
         libsumo.vehicle.moveToXY(BLOCKER, "", -1, FRONT_X, CENTRE_Y, 270.0, keepRoute=2)
