@@ -170,7 +170,7 @@ MAX_LANE_ANGLE_RAD = math.radians(60.0)
 #: Sublane actuation: a sideways move is checked against the cars around over this
 #: horizon [s] with this clearance [m] (`sideways_conflicts`).
 SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
-#: Sublane actuation: a sidestep inside a junction runs at most this fast [m/s].
+#: Sublane actuation: a sidestep (`ActuationBatch.sidestep_m`) runs at most this fast [m/s].
 SIDESTEP_SPEED_MPS = 0.5
 
 

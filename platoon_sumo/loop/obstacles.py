@@ -132,10 +132,8 @@ class ObstaclesAhead:
                 continue
             speed_along = max(float(world.speed_mps[i]) * cos, 0.0)
             m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
-            in_junction = world.lane_ids[selves[j]].startswith(":") or world.lane_ids[i].startswith(
-                ":"
-            )
-            if world.speed_mps[i] < STANDING_MPS and in_junction:
+            lanes = (world.lane_ids[selves[j]], world.lane_ids[i])
+            if world.speed_mps[i] < STANDING_MPS and any(x.startswith(":") for x in lanes):
                 m.sidestep_m = sidestep_clearing(
                     m.path, float(table[j, 1]), float(table[j, 2]), float(table[j, 3]),
                     float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
