@@ -1,15 +1,18 @@
 """How commands reach SUMO: actuation modes as plug-ins (`platoons[].actuation`).
 
 An actuator gets one platoon's executed commands as arrays and moves its vehicles for
-the next SUMO step. Two are built in:
+the next SUMO step. Three are built in:
 
 - `planar`: our vehicle model integrates speed and yaw rate and the pose is placed into
   SUMO (`moveToXY` + `setPreviousSpeed`): free lateral motion, our own lane changes.
 - `lane`: SUMO drives the vehicle along its lanes at the commanded speed (`setSpeed`),
   with its safe speed, lights and right of way underneath, and makes lane changes the
   controller asks for; the pose SUMO produced is read back after the step.
+- `sublane`: SUMO drives the speed as in `lane`; the controller's yaw rate becomes a
+  lateral speed in SUMO's sublane model (`changeSublane`), checked against the cars
+  beside; the pose is read back.
 
-A new mode is one module: a class with `sumo_drives` and `apply`, registered with
+A new mode is one module: a class with `sumo_drives`, `steers` and `apply`, registered with
 `@ACTUATORS.register("name")`.
 """
 
