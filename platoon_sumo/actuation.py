@@ -26,7 +26,8 @@ from typing import ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.geometry import sideways_conflicts, wrap_angle
+from platoon_sumo.geometry import wrap_angle
+from platoon_sumo.kernels.sideways import sideways_conflicts
 from platoon_sumo.registry import Registry
 from platoon_sumo.vehicles import KinematicState, MotionLimits, VehicleModel
 

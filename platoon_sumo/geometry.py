@@ -23,10 +23,6 @@ IntArray = NDArray[np.int64]
 
 TWO_PI = 2.0 * math.pi
 
-#: `sideways_conflicts`: a move counts as going deeper into a vehicle by more than this
-#: [m] (shifting past a slightly turned car changes the depth by rounding's worth).
-DEEPER_M = 1e-3
-
 # Columns of an (N, 5) rectangle array.
 CX, CY, YAW, LENGTH, WIDTH = range(5)
 
@@ -217,55 +213,6 @@ def overlapping_pairs(rects: ArrayLike, subjects: ArrayLike, tolerance_m: float 
     i, j = i[close], j[close]
     hit = rectangles_overlap(r[i], r[j], tolerance_m)
     return np.column_stack([i[hit], j[hit]]).astype(np.int64, copy=False)
-
-
-def sideways_conflicts(
-    rects: ArrayLike,
-    speed_mps: ArrayLike,
-    subjects: ArrayLike,
-    shift_m: ArrayLike,
-    horizon_s: float,
-    margin_m: float,
-) -> NDArray[np.bool_]:
-    """Would moving each subject sideways bring it into another vehicle?
-
-    Every rectangle advances along its yaw at its speed for `horizon_s`; subject k
-    (`subjects[k]`, a row of `rects`; -1: not in the world) is also shifted by
-    `shift_m[k]` to its left (negative: right). A conflict is another rectangle that
-    the shifted subject, `margin_m` larger on every side, overlaps deeper than the
-    unshifted one does: the sideways part of the move, not driving on, causes it (a car
-    closing on the one ahead in its lane is the longitudinal layer's business).
-    """
-    r = as_rectangles(rects)
-    speed = np.asarray(speed_mps, dtype=np.float64)
-    rows = np.asarray(subjects, dtype=np.int64)
-    shift = np.asarray(shift_m, dtype=np.float64)
-    out = np.zeros(rows.shape[0], dtype=np.bool_)
-    moving = np.flatnonzero((rows >= 0) & (shift != 0.0))
-    if moving.size == 0 or r.shape[0] < 2:
-        return out
-    ahead = r.copy()
-    ahead[:, CX] += np.cos(r[:, YAW]) * speed * horizon_s
-    ahead[:, CY] += np.sin(r[:, YAW]) * speed * horizon_s
-    own = ahead[rows[moving]].copy()
-    own[:, LENGTH] += 2.0 * margin_m
-    own[:, WIDTH] += 2.0 * margin_m
-    shifted = own.copy()
-    yaw = own[:, YAW]
-    shifted[:, CX] -= np.sin(yaw) * shift[moving]
-    shifted[:, CY] += np.cos(yaw) * shift[moving]
-    # candidates: the others overlapping the shifted rectangles (subjects are appended)
-    n = r.shape[0]
-    pairs = overlapping_pairs(np.concatenate([ahead, shifted]), np.arange(n, n + moving.size))
-    pairs = pairs[(pairs[:, 0] < n) & (pairs[:, 1] >= n)]
-    k = pairs[:, 1] - n
-    other = pairs[:, 0]
-    other_is_self = other == rows[moving][k]
-    k, other = k[~other_is_self], other[~other_is_self]
-    depth = penetration_depths(shifted[k], ahead[other])
-    deeper = (depth > 0.0) & (depth > penetration_depths(own[k], ahead[other]) + DEEPER_M)
-    out[moving[np.unique(k[deeper])]] = True
-    return out
 
 
 def as_rectangles(rects: ArrayLike) -> FloatArray:

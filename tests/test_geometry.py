@@ -20,11 +20,11 @@ from platoon_sumo.geometry import (
     rectangle_corners,
     rectangles_crossing_segments,
     rectangles_overlap,
-    sideways_conflicts,
     sumo_angle_deg_to_yaw,
     wrap_angle,
     yaw_to_sumo_angle_deg,
 )
+from platoon_sumo.kernels.sideways import sideways_conflicts
 
 SETTINGS = settings(deadline=None, max_examples=200)
 
@@ -327,6 +327,7 @@ def test_rectangles_crossing_segments_known_cases():
 
 
 # ---------------------------------------------------------------- sideways moves
+# (platoon_sumo.kernels.sideways, the check of sublane actuation)
 
 #: A car at the origin facing east (front bumper at x 2.25) and its neighbours.
 OWN = (0.0, 0.0, 0.0, 4.5, 1.8)

@@ -1,7 +1,7 @@
 """Sublane actuation does not move a car sideways into a car beside it: a weaving leader
 (`tests/plugins/weave.py`) asked to move a lane over waits while a SUMO car drives
 alongside in that lane and moves once it has gone; without the check it drives into
-the car's side (platoon_sumo.geometry.sideways_conflicts)."""
+the car's side (platoon_sumo.kernels.sideways)."""
 
 from __future__ import annotations
 

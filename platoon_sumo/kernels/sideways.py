@@ -1,0 +1,83 @@
+"""Would moving a vehicle sideways bring it into another one? (sublane actuation)"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: A move counts as going deeper into a vehicle by more than this [m] (shifting past a
+#: slightly turned car changes the depth by rounding's worth).
+DEEPER_M = 1e-3
+
+
+@njit(cache=True)
+def _depth(
+    ax: float, ay: float, ayaw: float, ahl: float, ahw: float,
+    bx: float, by: float, byaw: float, bhl: float, bhw: float,
+) -> float:  # fmt: skip
+    """Separating-axis penetration depth of two rectangles (centre, yaw, half length,
+    half width): > 0 when they overlap, the smallest push that separates them."""
+    ca, sa, cb, sb = math.cos(ayaw), math.sin(ayaw), math.cos(byaw), math.sin(byaw)
+    dx, dy = bx - ax, by - ay
+    c11 = abs(ca * cb + sa * sb)
+    c12 = abs(-ca * sb + sa * cb)
+    c21 = abs(-sa * cb + ca * sb)
+    c22 = abs(sa * sb + ca * cb)
+    return min(
+        ahl + bhl * c11 + bhw * c12 - abs(dx * ca + dy * sa),
+        ahw + bhl * c21 + bhw * c22 - abs(-dx * sa + dy * ca),
+        bhl + ahl * c11 + ahw * c21 - abs(dx * cb + dy * sb),
+        bhw + ahl * c12 + ahw * c22 - abs(-dx * sb + dy * cb),
+    )
+
+
+@njit(cache=True)
+def sideways_conflicts(
+    rects: np.ndarray,
+    speed_mps: np.ndarray,
+    subjects: np.ndarray,
+    shift_m: np.ndarray,
+    horizon_s: float,
+    margin_m: float,
+) -> np.ndarray:
+    """Would moving each subject sideways bring it into another vehicle?
+
+    Every rectangle (rows of `rects`: centre x, y, yaw, length, width) advances along
+    its yaw at its speed for `horizon_s`; subject k (`subjects[k]`, a row of `rects`; -1:
+    not in the world) is also shifted by `shift_m[k]` to its left (negative: right). A
+    conflict is another rectangle that the shifted subject, `margin_m` larger on every
+    side, overlaps deeper than the unshifted one does: the sideways part of the move,
+    not driving on, causes it (a car closing on the one ahead in its lane is the
+    longitudinal layer's business)."""
+    n = rects.shape[0]
+    out = np.zeros(subjects.shape[0], dtype=np.bool_)
+    ax = np.empty(n)
+    ay = np.empty(n)
+    radius = np.empty(n)
+    for i in range(n):
+        ax[i] = rects[i, 0] + math.cos(rects[i, 2]) * speed_mps[i] * horizon_s
+        ay[i] = rects[i, 1] + math.sin(rects[i, 2]) * speed_mps[i] * horizon_s
+        radius[i] = 0.5 * math.hypot(rects[i, 3], rects[i, 4])
+    for k in range(subjects.shape[0]):
+        j = subjects[k]
+        shift = shift_m[k]
+        if j < 0 or shift == 0.0:
+            continue
+        yaw = rects[j, 2]
+        hl, hw = 0.5 * rects[j, 3] + margin_m, 0.5 * rects[j, 4] + margin_m
+        sx, sy = ax[j] - math.sin(yaw) * shift, ay[j] + math.cos(yaw) * shift
+        reach = math.hypot(hl, hw)
+        for i in range(n):
+            if i == j or math.hypot(ax[i] - sx, ay[i] - sy) > reach + radius[i]:
+                continue
+            bhl, bhw = 0.5 * rects[i, 3], 0.5 * rects[i, 4]
+            after = _depth(sx, sy, yaw, hl, hw, ax[i], ay[i], rects[i, 2], bhl, bhw)
+            if after <= 0.0:
+                continue
+            before = _depth(ax[j], ay[j], yaw, hl, hw, ax[i], ay[i], rects[i, 2], bhl, bhw)
+            if after > before + DEEPER_M:
+                out[k] = True
+                break
+    return out
