@@ -7,36 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-
-@njit(cache=True)
-def _overlap(
-    ax: float,
-    ay: float,
-    ca: float,
-    sa: float,
-    ahl: float,
-    ahw: float,
-    bx: float,
-    by: float,
-    cb: float,
-    sb: float,
-    bhl: float,
-    bhw: float,
-) -> bool:
-    """Do two rectangles (centre, cos and sin of yaw, half length, half width) overlap?
-    Separating axes: the edge normals of both."""
-    dx = bx - ax
-    dy = by - ay
-    c11 = abs(ca * cb + sa * sb)
-    c12 = abs(-ca * sb + sa * cb)
-    c21 = abs(-sa * cb + ca * sb)
-    c22 = abs(sa * sb + ca * cb)
-    return (
-        ahl + bhl * c11 + bhw * c12 > abs(dx * ca + dy * sa)
-        and ahw + bhl * c21 + bhw * c22 > abs(-dx * sa + dy * ca)
-        and bhl + ahl * c11 + ahw * c21 > abs(dx * cb + dy * sb)
-        and bhw + ahl * c12 + ahw * c22 > abs(-dx * sb + dy * cb)
-    )  # fmt: skip
+from platoon_sumo.kernels.rectangles import rectangle_depth
 
 
 @njit(cache=True)
@@ -132,7 +103,10 @@ def corridor_intrusions(
             for i in range(m):
                 if math.hypot(cx - sx[i], cy - sy[i]) > sh[i] + hw + size:
                     continue
-                if _overlap(sx[i], sy[i], sc[i], ss[i], sh[i], hw, cx, cy, rc[k], rs[k], hl, hwk):
+                depth = rectangle_depth(
+                    sx[i], sy[i], sc[i], ss[i], sh[i], hw, cx, cy, rc[k], rs[k], hl, hwk
+                )
+                if depth > 0.0:
                     if count < capacity:
                         out_member[count] = j
                         out_rect[count] = k

@@ -7,30 +7,11 @@ import math
 import numpy as np
 from numba import njit
 
+from platoon_sumo.kernels.rectangles import rectangle_depth
+
 #: A move counts as going deeper into a vehicle by more than this [m] (shifting past a
 #: slightly turned car changes the depth by rounding's worth).
 DEEPER_M = 1e-3
-
-
-@njit(cache=True)
-def _depth(
-    ax: float, ay: float, ayaw: float, ahl: float, ahw: float,
-    bx: float, by: float, byaw: float, bhl: float, bhw: float,
-) -> float:  # fmt: skip
-    """Separating-axis penetration depth of two rectangles (centre, yaw, half length,
-    half width): > 0 when they overlap, the smallest push that separates them."""
-    ca, sa, cb, sb = math.cos(ayaw), math.sin(ayaw), math.cos(byaw), math.sin(byaw)
-    dx, dy = bx - ax, by - ay
-    c11 = abs(ca * cb + sa * sb)
-    c12 = abs(-ca * sb + sa * cb)
-    c21 = abs(-sa * cb + ca * sb)
-    c22 = abs(sa * sb + ca * cb)
-    return min(
-        ahl + bhl * c11 + bhw * c12 - abs(dx * ca + dy * sa),
-        ahw + bhl * c21 + bhw * c22 - abs(-dx * sa + dy * ca),
-        bhl + ahl * c11 + ahw * c21 - abs(dx * cb + dy * sb),
-        bhw + ahl * c12 + ahw * c22 - abs(-dx * sb + dy * cb),
-    )
 
 
 @njit(cache=True)
@@ -65,18 +46,19 @@ def sideways_conflicts(
         shift = shift_m[k]
         if j < 0 or shift == 0.0:
             continue
-        yaw = rects[j, 2]
+        ca, sa = math.cos(rects[j, 2]), math.sin(rects[j, 2])
         hl, hw = 0.5 * rects[j, 3] + margin_m, 0.5 * rects[j, 4] + margin_m
-        sx, sy = ax[j] - math.sin(yaw) * shift, ay[j] + math.cos(yaw) * shift
+        sx, sy = ax[j] - sa * shift, ay[j] + ca * shift
         reach = math.hypot(hl, hw)
         for i in range(n):
             if i == j or math.hypot(ax[i] - sx, ay[i] - sy) > reach + radius[i]:
                 continue
+            cb, sb = math.cos(rects[i, 2]), math.sin(rects[i, 2])
             bhl, bhw = 0.5 * rects[i, 3], 0.5 * rects[i, 4]
-            after = _depth(sx, sy, yaw, hl, hw, ax[i], ay[i], rects[i, 2], bhl, bhw)
+            after = rectangle_depth(sx, sy, ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
             if after <= 0.0:
                 continue
-            before = _depth(ax[j], ay[j], yaw, hl, hw, ax[i], ay[i], rects[i, 2], bhl, bhw)
+            before = rectangle_depth(ax[j], ay[j], ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
             if after > before + DEEPER_M:
                 out[k] = True
                 break
