@@ -270,15 +270,9 @@ class RoutePath:
         """(edge, lane index) of the lane `lateral_offset_m` (left +) beside the path at
         `s_m`; None in junctions and lane-change stretches, where the path lies between
         lanes."""
-        for begin, end in self._lane_change_spans:
-            if begin <= s_m <= end:
-                return None
-        i = min(int(max(s_m, 0.0) // self.spacing_m), len(self.xy_m) - 1)
-        key = self._lane_key_of_point[i]
-        if key is None:
+        if self._in_lane_change(s_m, s_m):
             return None
-        edge, index = key
-        return edge, int(index) + round(lateral_offset_m / self._lane_width[i])
+        return self._lane_of(s_m, lateral_offset_m)
 
     def lane_step(
         self, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
