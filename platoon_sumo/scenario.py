@@ -982,6 +982,7 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
     slot_m = p.vehicle.length_m + p.spacing_m
     fitting = min(p.members, int((depart_pos - p.vehicle.length_m) // slot_m) + 1)
     members = []
+    actuator = ACTUATORS.get(p.actuation)
     for k, vid in enumerate(p.member_ids()):
         role = "leader" if k == 0 else "follower"
         ctrl = p.leader if k == 0 else p.follower
@@ -995,7 +996,6 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
         pos = depart_pos - min(k, fitting - 1) * slot_m
         sensors = _sensors(ctrl, file, ctrl_key)
         sumo_cf = sumo_car_following(cls, params)
-        actuator = ACTUATORS.get(p.actuation)
         if sumo_cf is not None and (not actuator.sumo_drives or actuator.steers):
             raise ScenarioError(
                 file, f"{key}.actuation",
