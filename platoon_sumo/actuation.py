@@ -82,7 +82,8 @@ class ActuationBatch:
     its way, one of the two in a junction (`ObstaclesAhead`); 0: none. None: no one
     has one."""
     surroundings: Surroundings | None = None
-    """Every vehicle's footprint, to keep sideways moves off the cars beside."""
+    """Every vehicle's footprint, to keep sideways moves off the cars beside. This and
+    `sidestep_m` are given to actuators that steer only."""
 
 
 @dataclass(frozen=True)

@@ -59,9 +59,9 @@ class Actuate:
                 yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
                 lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
                 keep_lane=np.array([m.executed.keep_lane for m in group], dtype=bool),
-                sidestep_m=np.array([m.sidestep_m for m in group]),
+                sidestep_m=np.array([m.sidestep_m for m in group]) if actuator.steers else None,
                 surroundings=None
-                if footprints is None
+                if footprints is None or not actuator.steers
                 else Surroundings(
                     footprints,
                     world.speed_mps,
