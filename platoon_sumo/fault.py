@@ -12,7 +12,13 @@ The rules, in order (docs/metrics.md):
    contact and has it in the front quarter of its body, that vehicle struck the other (a
    rear-end, a car running into a crossing car's side).
 3. **Closing faster.** Otherwise, the vehicle whose velocity points more towards the
-   contact, by more than `TIE_MPS`; if neither does, nobody (``None``).
+   contact, by more than `TIE_MPS`, and towards it at more than `TIE_MPS`.
+4. **Swept into a standing vehicle.** Otherwise, when one vehicle moves (at least
+   `TIE_MPS`) and the other stands, the mover (its body swept into the other, e.g. its
+   rear swinging out in a turn); else nobody (``None``).
+
+A vehicle slower than `TIE_MPS` is never at fault: SUMO reports a stopped car's speed
+as rounding noise (1e-15 m/s), which must not decide.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ SIDEWAYS_MPS = 0.3
 #: the lane (at a cut-in's first contact they are nearly a full width apart; a car
 #: running into another's rear a little off-centre is not beside it).
 BESIDE_SHARE = 0.5
-#: Closing speeds closer than this are a tie [m/s].
+#: Closing speeds closer than this are a tie, and a vehicle slower than this stands [m/s].
 TIE_MPS = 0.1
 #: A contact point this close to a body's centre gives it no direction [m].
 AT_CENTRE_M = 1e-3
@@ -44,6 +50,7 @@ FRONT_SHARE = 0.5
 SIDEWAYS = "moved sideways into the other's path"
 FRONT = "front into the other's side or rear"
 CLOSING = "closing faster"
+SWEPT = "swept into a standing vehicle"
 
 
 @dataclass(frozen=True)
@@ -114,6 +121,9 @@ def contact_fault(
     if fronts[0] != fronts[1]:
         return Fault(0 if fronts[0] else 1, FRONT, cx, cy)
     close = [closing(i) for i in (0, 1)]
-    if abs(close[0] - close[1]) > TIE_MPS and max(close) > 0.0:
+    if abs(close[0] - close[1]) > TIE_MPS and max(close) > TIE_MPS:
         return Fault(0 if close[0] > close[1] else 1, CLOSING, cx, cy)
+    moving = [abs(s) >= TIE_MPS for s in speeds]
+    if moving[0] != moving[1]:
+        return Fault(0 if moving[0] else 1, SWEPT, cx, cy)
     return Fault(None, "undetermined", cx, cy)

@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from platoon_sumo.fault import CLOSING, FRONT, SIDEWAYS, contact_fault
+from platoon_sumo.fault import CLOSING, FRONT, SIDEWAYS, SWEPT, contact_fault
 from platoon_sumo.geometry import penetration_depths
 
 L, W = 4.5, 1.8
@@ -102,12 +102,31 @@ def test_attribution_is_invariant_to_naming_order_and_rigid_motion(scene, dx, dy
     assert np.allclose((moved.contact_x_m, moved.contact_y_m), expected, atol=1e-6)
 
 
-@settings(max_examples=200, deadline=None)
-@given(scene=scenes)
-def test_a_standing_vehicle_is_never_at_fault(scene):
+@settings(max_examples=300, deadline=None)
+@given(scene=scenes, creep=st.sampled_from([0.0, 1e-15, 4.2e-15, 1e-6, 0.05, 0.099]))
+def test_a_standing_vehicle_is_never_at_fault(scene, creep):
+    """Standing includes SUMO's stopped speeds (rounding noise, 1e-15 m/s) and a creep
+    below 0.1 m/s; and when the other moves, it is the one at fault."""
     bx, by, byaw, _, vb, lane_b = scene
     assume(penetration_depths([car(0.0, 0.0)], [car(bx, by, byaw)])[0] > 0.01)
-    assert contact_fault(car(0.0, 0.0), car(bx, by, byaw), 0.0, vb, 0.0, lane_b).at_fault != 0
+    fault = contact_fault(car(0.0, 0.0), car(bx, by, byaw), creep, vb, 0.0, lane_b)
+    assert fault.at_fault != 0
+    if vb >= 0.1:
+        assert fault.at_fault == 1
+
+
+def test_a_car_whose_rear_swings_into_a_stopped_car_is_at_fault():
+    """Found on a race circuit: a car stopped in a junction (SUMO speed 4e-15 m/s) was
+    blamed for 'closing faster' on every car whose rear corner, moving away from the
+    contact, swept its front while turning past it."""
+    stopped = car(0.0, 0.0)
+    # ahead, heading away to the left at 40 deg: its rear-left corner in the stopped
+    # car's front-right corner, the contact behind its centre, so it moves away from it
+    passing = car(4.3, 0.06, math.radians(40.0))
+    assert penetration_depths([stopped], [passing])[0] > 0.01
+    fault = contact_fault(stopped, passing, 4.2e-15, 6.0)
+    assert (fault.at_fault, fault.reason) == (1, SWEPT)
+    assert contact_fault(passing, stopped, 6.0, 4.2e-15).at_fault == 0
 
 
 def _near_threshold(a, b, va, vb, lane_b) -> bool:
