@@ -90,26 +90,29 @@ class LaneChangeGaps:
         reach = max(p.look_ahead_min_m, p.look_ahead_time_s * speed)
         if distance > reach + p.look_ahead_lengths * length:
             return None
-        occupants = [o for lane in change.target_lane_ids for o in ctx.backend.lane_occupants(lane)]
-        move_m = change.end_s_m - change.begin_s_m
-        if distance <= 0.0:  # under way: the vehicle ahead in the target lane, and sideways
-            own = change.begin_lane_pos_m - distance
-            ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
-                     if vid != m.id and pos - other_len > own - 1e-9]  # fmt: skip
-            leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
-            hold = self._sideways_hold_m(ctx, m, change, occupants)
-            if hold is not None:
-                return LaneChangeAhead(hold, clear=False, target_leader=leader)
-            return LaneChangeAhead(distance, clear=True, target_leader=leader)
-        # Before the move: the member itself is no gap to wait for, nor are the target
-        # lanes it already drives in (a steered car may be there before its path: it
-        # followed its predecessor, or SUMO made the change for it standing). Counted,
-        # its own follower right behind it in that lane held it, and the follower waited
-        # for it: members of a platoon stood beside each other for good.
+        # The target lanes the member already drives in are no gap to wait for, nor to
+        # pause a sideways move for (a steered car may be there before its path: it
+        # followed its predecessor, or SUMO made the change for it). Counted, its own
+        # follower right behind it in that lane held it, and the follower waited for
+        # it: members of a platoon stood beside each other for good.
         here = ctx.world.lane_ids[ctx.world.index[m.id]] if m.id in ctx.world.index else ""
         targets = change.target_lane_ids
         if here in targets:
             targets = targets[targets.index(here) + 1 :]
+        move_m = change.end_s_m - change.begin_s_m
+        if distance <= 0.0:  # under way: the vehicle ahead in the target lane, and sideways
+            occupants = [
+                o for lane in change.target_lane_ids for o in ctx.backend.lane_occupants(lane)
+            ]
+            own = change.begin_lane_pos_m - distance
+            ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
+                     if vid != m.id and pos - other_len > own - 1e-9]  # fmt: skip
+            leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
+            beside = [o for lane in targets for o in ctx.backend.lane_occupants(lane)]
+            hold = self._sideways_hold_m(ctx, m, change, beside)
+            if hold is not None:
+                return LaneChangeAhead(hold, clear=False, target_leader=leader)
+            return LaneChangeAhead(distance, clear=True, target_leader=leader)
         occupants = [
             o for lane in targets for o in ctx.backend.lane_occupants(lane) if o[0] != m.id
         ]

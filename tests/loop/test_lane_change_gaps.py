@@ -54,3 +54,29 @@ def test_the_vehicle_ahead_in_the_target_lane_is_still_its_leader():
     leader = member.lane_change.target_leader
     assert leader is not None and leader.vehicle_id == "bg1"
     assert abs(leader.gap_m - (80.0 - LENGTH_M - 54.8)) < 1e-9
+
+
+def test_a_member_already_in_its_last_target_lane_waits_for_no_car_it_has_passed_over():
+    """osm_spreewaldring: the route crosses two 10 m lanes of netconvert's on-ramp; a
+    follower, there before its path (SUMO made the change for it), stood on the last
+    target lane for good, held by a car in the lane between, alongside the path it no
+    longer drove on. 10 of 12 platoon cars stood on the ramp to the end."""
+    two_lanes = LaneChange(70.0, 120.0, ("ramp_2", "ramp_3"), begin_lane_pos_m=20.0)
+    beside = [("bg2", 55.0, 0.0, LENGTH_M)]  # on ramp_2, alongside, where the path runs
+    held = {}
+    for here in ("ramp_1", "ramp_3"):
+        ctx, member = member_during_the_change([])
+        member.path.next_lane_change = lambda s: two_lanes
+        ctx.backend = SimpleNamespace(
+            lane_occupants=lambda lane: beside if lane == "ramp_2" else [],
+            lane_shape=lambda lane: np.array([[0.0, 0.0], [200.0, 0.0]]),
+            lane_width=lambda lane: 3.2,
+        )
+        ctx.world = SimpleNamespace(
+            index={"p.3": 0, "bg2": 1}, lane_ids=[here, "ramp_2"],
+            front_x_m=np.array([104.8, 105.0]), front_y_m=np.array([0.0, 0.0]),
+            width_m=np.array([1.8, 1.8]),
+        )  # fmt: skip
+        LaneChangeGaps()(ctx)  # type: ignore[arg-type]
+        held[here] = not member.lane_change.clear
+    assert held == {"ramp_1": True, "ramp_3": False}
