@@ -43,7 +43,8 @@ Each step:
 5. **Lost** (no confirmed track): ``on_lost="stop"`` brakes at ``comfort_decel_mps2``
    while steering along what is left of the trail; ``on_lost="route_following"`` hands
    over to a ``RouteFollowing`` on ``observation.path`` (without ``vehicle_ahead``, its
-   speed capped by the laser's clearance along the commanded arc) until a predecessor
+   speed capped by the laser's clearance along the commanded arc, in a band a quarter
+   width wider than the body on each side, 5 cm in a junction) until a predecessor
    is confirmed again, then follows again. Never inside a junction: a follower lost
    with its body in a junction, or whose comfortable stop would end in one, drives out
    on its route as ``route_following`` does (mode ``leaving_junction``), then stops.
@@ -145,6 +146,14 @@ class LaserFollowerParams:
     leave_junctions: bool = True
     """Lost with the body in a junction, or where a comfortable stop would end in one,
     drive out on the own route before stopping (False: stop wherever lost)."""
+    guard_margin_rel: float = bounded(0.25, ge=0, le=10)
+    """Lost on the own route: the speed is capped by the laser's clearance along the
+    commanded arc, in a band of the body plus this share of its width on each side."""
+    guard_margin_junction_m: float = bounded(0.05, ge=0, le=10)
+    """The band's margin on each side while the body is in a junction [m]. A car waiting
+    inside a junction may stand a few decimetres beside the path (where the network's
+    internal lanes come close); with the wide margin the follower stopped beside it in
+    the junction, and the waiting car waited for it for good (the DRT district)."""
     predecessor_width_m: float | None = bounded(None, gt=0, le=20)
     """Expected rear width of the predecessor [m]; None: the follower's own width."""
     corridor_half_width_m: float | Literal["lane"] | None = "lane"
@@ -179,6 +188,8 @@ class LaserFollowerParams:
             "lookahead_time_s",
             "corridor_margin_rel",
             "corridor_exit_s",
+            "guard_margin_rel",
+            "guard_margin_junction_m",
             allow_zero=True,
         )
         require(self.max_trail_points >= 2, "max_trail_points", "must be >= 2")
@@ -588,6 +599,15 @@ class LaserFollower:
         stop_m = front_m + obs.speed_mps**2 / (2.0 * self.params.comfort_decel_mps2)
         return obs.path.junction_within(front_m - obs.length_m, stop_m)
 
+    def _guard_margin_m(self, obs: Observation) -> float:
+        """The clearance band's margin beside the body (``guard_margin_rel``, or
+        ``guard_margin_junction_m`` with any of the body in a junction)."""
+        path = obs.path
+        front_m = self._fallback._s_m + obs.front_offset_m
+        if path is not None and path.junction_within(front_m - obs.length_m, front_m):
+            return self.params.guard_margin_junction_m
+        return self.params.guard_margin_rel * obs.width_m
+
     def _stop(self, obs: Observation) -> tuple[float, float]:
         """(speed, yaw rate): brake comfortably along what is left of the trail."""
         speed = max(obs.speed_mps - self.params.comfort_decel_mps2 * obs.dt_s, 0.0)
@@ -641,7 +661,7 @@ class LaserFollower:
                 obs.y_m + obs.front_offset_m * s,
                 c,
                 s,
-                0.5 * obs.width_m + 0.25 * obs.width_m,
+                0.5 * obs.width_m + self._guard_margin_m(obs),
                 float(curvature),
             )
         )
