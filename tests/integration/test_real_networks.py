@@ -104,7 +104,7 @@ def test_city_platoons_meet_signals_and_unsignalised_junctions(city):
     stopped = traj[(traj["speed_mps"] < 0.1) & (traj["signal_state"].isin(["r", "y"]))]
     assert len(stopped) > 0  # held at a red light
     assert (stopped["signal_distance_m"] >= 0).all()
-    # waited at a minor approach: standing, held by SUMO's right of way (lane actuation),
+    # waited at a minor approach: standing, held by SUMO's right of way (sublane actuation),
     # with no red light near and nobody just ahead
     red_near = traj["signal_state"].isin(["r", "y"]) & (traj["signal_distance_m"] < 30.0)
     free_ahead = traj["ahead_gap_m"].isna() | (traj["ahead_gap_m"] > 10.0)
@@ -145,7 +145,7 @@ def test_motorway_platoon_follows_its_leaders_lane_changes(motorway):
 
 def test_summaries_name_the_networks(city, motorway):
     city_summary, motorway_summary = city[0], motorway[0]
-    assert "drt_city.net.xml.gz" in json.dumps(city_summary)
+    assert "tools/game/DRT/osm.net.xml" in json.dumps(city_summary)  # as shipped
     assert "tools/game/A10KW" in json.dumps(motorway_summary)
     for summary in (city_summary, motorway_summary):
         assert Path(summary["scenario_file"]).name.endswith("_platoons.yaml")
