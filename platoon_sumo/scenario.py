@@ -481,12 +481,14 @@ class PlatoonConfig:
     """Lane index on the first edge (0 = rightmost); default 0."""
     vehicle: VehicleConfig = VehicleConfig()
     """Geometry, motion model and limits of the members."""
-    actuation: str = "planar"
-    """How commands reach SUMO. `planar`: the vehicle model integrates speed and heading
-    and the pose is placed into SUMO (free lateral motion: robots, the paper's world, our
-    own lane changes). `lane`: SUMO drives the vehicle along its lanes (lane keeping, the
-    route's lane changes, its safe speed at junctions and lights as the last safety
-    layer) at the speed the controller and supervisor command; heading is SUMO's.
+    actuation: str | None = None
+    """How commands reach SUMO; null: the vehicle model's default (`sublane` for the
+    bicycle, cars; `planar` for the unicycle, robots). `planar`: the vehicle model
+    integrates speed and heading and the pose is placed into SUMO (free lateral motion:
+    robots, the paper's world, our own lane changes). `lane`: SUMO drives the vehicle
+    along its lanes (lane keeping, the route's lane changes, its safe speed at junctions
+    and lights as the last safety layer) at the speed the controller and supervisor
+    command; heading is SUMO's.
     `sublane`: SUMO drives the speed as in `lane`, and the controller's heading moves the
     car sideways within and across lanes through SUMO's sublane model (needs
     `simulation.lateral_resolution_m`); SUMO makes no lane change of its own, except the
@@ -513,8 +515,14 @@ class PlatoonConfig:
             "id", "must be a non-empty name without spaces or dots",
         )  # fmt: skip
         require_safe_id(self.id, "id")
+        if self.actuation is None:
+            try:
+                default = VEHICLE_MODELS.get(self.vehicle.model).default_actuation
+            except (LookupError, AttributeError):
+                default = "planar"  # the vehicle's own check names an unknown model
+            object.__setattr__(self, "actuation", default)
         try:  # a registered name, or a plug-in's `package.module:Class`
-            ACTUATORS.get(self.actuation)
+            ACTUATORS.get(self.actuation_name)
         except LookupError as exc:
             raise FieldError("actuation", str(exc)) from None
         require(self.members >= 1, "members", "must be >= 1")
@@ -524,6 +532,12 @@ class PlatoonConfig:
 
     def member_ids(self) -> list[str]:
         return [f"{self.id}.{k}" for k in range(self.members)]
+
+    @property
+    def actuation_name(self) -> str:
+        """The actuation in effect (`actuation`, or the vehicle model's default)."""
+        assert self.actuation is not None  # resolved in __post_init__
+        return self.actuation
 
 
 @dataclass(frozen=True)
@@ -803,7 +817,7 @@ def prepare(source: ScenarioSource) -> RunPlan:
             raise ScenarioError(file, key, str(exc)) from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
-    steered = [(key, p.actuation) for p, key in declared if _steers(p.actuation)]
+    steered = [(key, p.actuation_name) for p, key in declared if _steers(p.actuation_name)]
     if steered and sc.simulation.lateral_resolution_m is None:
         raise ScenarioError(
             file, "simulation.lateral_resolution_m",
@@ -982,7 +996,7 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
     slot_m = p.vehicle.length_m + p.spacing_m
     fitting = min(p.members, int((depart_pos - p.vehicle.length_m) // slot_m) + 1)
     members = []
-    actuator = ACTUATORS.get(p.actuation)
+    actuator = ACTUATORS.get(p.actuation_name)
     for k, vid in enumerate(p.member_ids()):
         role = "leader" if k == 0 else "follower"
         ctrl = p.leader if k == 0 else p.follower
@@ -1001,7 +1015,7 @@ def _prepare_platoon(p: PlatoonConfig, key: str, network: Network, file: str) ->
                 file, f"{key}.actuation",
                 f"the {role}s' controller '{ctrl.type}' leaves the speed to SUMO's "
                 f"car-following model, which drives a car along its lanes only; got "
-                f"'{p.actuation}'", "use `actuation: lane`",
+                f"'{p.actuation_name}'", "use `actuation: lane`",
             )  # fmt: skip
         members.append(
             MemberPlan(vid, p.id, k, role, cls, params, pos, sensors, k >= fitting, sumo_cf)

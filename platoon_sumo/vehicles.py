@@ -121,6 +121,8 @@ class VehicleModel(Protocol):
     default_actuator_lag_s: ClassVar[float]
     """The powertrain lag a vehicle of this kind gets unless its scenario sets
     ``vehicle.actuator_lag_s``."""
+    default_actuation: ClassVar[str]
+    """The actuation a platoon of this kind gets unless its scenario sets ``actuation``."""
 
     def step(
         self,
@@ -145,6 +147,8 @@ class Unicycle:
 
     name: ClassVar[str] = "unicycle"
     default_actuator_lag_s: ClassVar[float] = 0.0
+    #: robots in free space (the paper's world): our model moves them in the plane
+    default_actuation: ClassVar[str] = "planar"
 
     def step(
         self,
@@ -171,6 +175,8 @@ class Bicycle:
 
     name: ClassVar[str] = "bicycle"
     default_actuator_lag_s: ClassVar[float] = 0.1
+    #: cars on SUMO's roads: SUMO's vehicles, steered sideways by our heading
+    default_actuation: ClassVar[str] = "sublane"
 
     def step(
         self,

@@ -438,8 +438,8 @@ CASES = [
     Case(
         "sumo_driver_needs_lane_actuation",
         "platoons[0].actuation",
-        ("controller 'sumo_driver' leaves the speed to SUMO's car-following model", "planar"),
-        _sumo_followers({}, actuation=None),
+        ("controller 'sumo_driver' leaves the speed to SUMO's car-following model", "sublane"),
+        _sumo_followers({}, actuation=None),  # cars' default: sublane
         hint="use `actuation: lane`",
     ),
     Case(
@@ -450,9 +450,9 @@ CASES = [
         hint="did you mean 'lane'?",
     ),
     Case(
-        "planar_platoon_without_sublane_model",
+        "steered_platoon_without_sublane_model",
         "simulation.lateral_resolution_m",
-        ("platoons[0] uses planar actuation", "sublane model"),
+        ("platoons[0] uses sublane actuation", "sublane model"),  # cars' default
         put("simulation.lateral_resolution_m", None),
         hint="actuation: lane",
     ),

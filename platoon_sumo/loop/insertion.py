@@ -54,7 +54,7 @@ def _room_for(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan])
 
 
 def _hand_over(ctx: StepContext, platoon: PlatoonPlan, members: list[MemberPlan]) -> None:
-    actuator = ACTUATORS.get(platoon.config.actuation)
+    actuator = ACTUATORS.get(platoon.config.actuation_name)
     for member in members:
         ctx.backend.add_vehicle(
             member.vehicle_id, platoon.edges, platoon.type_id_of(member), platoon.depart_lane,
@@ -108,7 +108,7 @@ class Departures:
             controller.reset()
             i = world.index[vid]
             member = ctx.fleet.join(
-                plan, platoon, controller, ACTUATORS.get(platoon.config.actuation)(),
+                plan, platoon, controller, ACTUATORS.get(platoon.config.actuation_name)(),
                 self._path_for(ctx, platoon),
             )  # fmt: skip
             member.set_front_pose(

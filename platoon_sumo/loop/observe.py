@@ -86,7 +86,7 @@ def own_reach_m(plan: RunPlan) -> float:
     for platoon in plan.platoons:
         vehicle = platoon.config.vehicle
         size = max(size, vehicle.length_m + vehicle.width_m)
-        if ACTUATORS.get(platoon.config.actuation).steers:
+        if ACTUATORS.get(platoon.config.actuation_name).steers:
             reach = max(reach, LANE_CHANGE_REACH_M)
         for member in platoon.members:
             for sensor in member.sensors:

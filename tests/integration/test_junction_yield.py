@@ -41,7 +41,9 @@ def test_platoon_vehicle_yields_to_priority_traffic(priority_crossing, write_sce
             "flows": [{"from_edge": "WC", "to_edge": "CE", "vehs_per_hour": 2400,
                        "begin_s": 0.0, "end_s": 50.0, "type": "h"}],
         },
-        "platoons": [{"id": "ego", "route": {"edges": ["SC", "CN"]}, "depart_s": 5.0}],
+        # planar: the supervisor's yield (with lane or sublane actuation SUMO gives way)
+        "platoons": [{"id": "ego", "route": {"edges": ["SC", "CN"]}, "depart_s": 5.0,
+                      "actuation": "planar"}],
     }  # fmt: skip
     out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
     summary = (out / "summary.json").read_text()

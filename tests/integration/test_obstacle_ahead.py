@@ -50,6 +50,7 @@ def scenario() -> dict:
         "network": {"net_file": str(URBAN_GRID_NET)},
         "platoons": [{
             "id": "p", "members": 2, "spacing_m": 10.0, "depart_s": 5.0, "depart_lane": 0,
+            "actuation": "planar",  # placed cars: only the corridor check stops them
             "route": {"edges": ["A1B1", "B1C1", "C1right1"]},
             "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0}},
             "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"}},

@@ -188,7 +188,9 @@ def test_platoon_longer_than_its_first_edge_departs_member_by_member(write_scena
     # 12 cars of 4.5 m with 8 m gaps need 142 m; the first edge is 89.6 m: 7 fit
     route = {"edges": ["left1A1", "A1B1", "B1C1", "C1right1"]}
     scenario = {
-        "simulation": {"step_s": 0.1, "end_s": 150.0, "seed": 5},
+        # 200 s: with the cars' default (sublane) actuation the members that depart late
+        # stand at red lights at A1 and C1, and the last one arrives after 150 s
+        "simulation": {"step_s": 0.1, "end_s": 200.0, "seed": 5},
         "network": {"net_file": str(URBAN_GRID_NET)},
         "platoons": [{
             "id": "long", "members": 12, "spacing_m": 8.0, "depart_s": 2.0, "route": route,
