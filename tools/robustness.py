@@ -38,7 +38,7 @@ on every run):
    scenarios/city_platoons.yaml (route-following leader at 11 m/s at most,
    `laser_follower` followers with the `utm30lx` scan and `on_lost: route_following`,
    kinematic bicycle cars, SUMO tau 0.5 s), `actuation` from `--actuation` (default
-   `lane`), departing every `--stagger` s from `--warmup` s on; checked with
+   `sublane`, the cars' default; `lane` runs without SUMO's sublane model), departing every `--stagger` s from `--warmup` s on; checked with
    `platoon-sumo validate`;
 4. **runs**: `platoon-sumo run SCENARIO --out DIR --quiet`, then the same with
    `--no-platoons`, each a child process with a wall-clock limit (`--timeout`), one
@@ -155,7 +155,7 @@ class Config:
     seed: int = 42
     platoons: int = 3
     members: int = 4
-    actuation: str = "lane"
+    actuation: str = "sublane"
     warmup_s: float = 60.0
     stagger_s: float = 30.0
     #: Platoon route length window [m]; None: the longest is what the last platoon can
