@@ -122,7 +122,8 @@ class VehicleModel(Protocol):
     """The powertrain lag a vehicle of this kind gets unless its scenario sets
     ``vehicle.actuator_lag_s``."""
     default_actuation: ClassVar[str]
-    """The actuation a platoon of this kind gets unless its scenario sets ``actuation``."""
+    """The actuation a platoon of this kind gets unless its scenario sets ``actuation``
+    (a plug-in model without it: ``planar``, as before this attribute existed)."""
 
     def step(
         self,
