@@ -38,8 +38,8 @@ on every run):
    scenarios/city_platoons.yaml (route-following leader at 11 m/s at most,
    `laser_follower` followers with the `utm30lx` scan and `on_lost: route_following`,
    kinematic bicycle cars, SUMO tau 0.5 s), `actuation` from `--actuation` (default
-   `sublane`, the cars' default; `lane` runs without SUMO's sublane model), departing every `--stagger` s from `--warmup` s on; checked with
-   `platoon-sumo validate`;
+   `sublane`, the cars' default; `lane` runs without SUMO's sublane model), departing
+   every `--stagger` s from `--warmup` s on; checked with `platoon-sumo validate`;
 4. **runs**: `platoon-sumo run SCENARIO --out DIR --quiet`, then the same with
    `--no-platoons`, each a child process with a wall-clock limit (`--timeout`), one
    after the other, into `<work>/<network>/with_platoons` and `without_platoons` (their
