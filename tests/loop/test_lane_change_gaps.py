@@ -59,8 +59,8 @@ def test_the_vehicle_ahead_in_the_target_lane_is_still_its_leader():
 def test_a_member_already_in_its_last_target_lane_waits_for_no_car_it_has_passed_over():
     """osm_spreewaldring: the route crosses two 10 m lanes of netconvert's on-ramp; a
     follower, there before its path (SUMO made the change for it), stood on the last
-    target lane for good, held by a car in the lane between, alongside the path it no
-    longer drove on. 10 of 12 platoon cars stood on the ramp to the end."""
+    target lane for good, held by a car on a lane it had crossed, alongside the path it
+    no longer drove on; 10 of 12 platoon cars never arrived."""
     two_lanes = LaneChange(70.0, 120.0, ("ramp_2", "ramp_3"), begin_lane_pos_m=20.0)
     beside = [("bg2", 55.0, 0.0, LENGTH_M)]  # on ramp_2, alongside, where the path runs
     held = {}
