@@ -153,7 +153,7 @@ class LaserFollowerParams:
     """The band's margin on each side while the body is in a junction [m]. A car waiting
     inside a junction may stand a few decimetres beside the path (where the network's
     internal lanes come close); with the wide margin the follower stopped beside it in
-    the junction, and the waiting car waited for it for good (the DRT district)."""
+    the junction, and the waiting car stood there too, to the end (the DRT district)."""
     predecessor_width_m: float | None = bounded(None, gt=0, le=20)
     """Expected rear width of the predecessor [m]; None: the follower's own width."""
     corridor_half_width_m: float | Literal["lane"] | None = "lane"

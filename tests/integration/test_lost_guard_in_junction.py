@@ -2,8 +2,8 @@
 path. On the unrepaired DRT district a follower that had lost its predecessor entered a
 joined junction where an oncoming car waited 0.1-0.2 m beside its path (outside the
 loop's corridor, inside the guard's band of a quarter width beside the body): the laser
-guard of its route-following fallback stopped it there, and the waiting car, which
-gives way to it, waited for it until the end (3 of 24 cars never arrived). With the
+guard of its route-following fallback stopped it there, and the waiting car stood there
+too until the end (3 of 24 cars never arrived). With the
 body in a junction the band keeps `guard_margin_junction_m` (5 cm) beside the body."""
 
 from __future__ import annotations
