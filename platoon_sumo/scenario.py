@@ -517,9 +517,10 @@ class PlatoonConfig:
         require_safe_id(self.id, "id")
         if self.actuation is None:
             try:
-                default = VEHICLE_MODELS.get(self.vehicle.model).default_actuation
-            except (LookupError, AttributeError):
-                default = "planar"  # the vehicle's own check names an unknown model
+                model: object = VEHICLE_MODELS.get(self.vehicle.model)
+            except LookupError:
+                model = None  # the vehicle's own check names an unknown model
+            default = getattr(model, "default_actuation", None) or "planar"
             object.__setattr__(self, "actuation", default)
         try:  # a registered name, or a plug-in's `package.module:Class`
             ACTUATORS.get(self.actuation_name)
@@ -629,6 +630,13 @@ class ScenarioSource:
         data.setdefault("name", self.scenario.name)
         if not self.scenario.platoons:  # e.g. run with --no-platoons
             data.pop("platoons", None)
+        entries = data.get("platoons") or []
+        if len(entries) == len(self.scenario.platoons):
+            for entry, platoon in zip(entries, self.scenario.platoons, strict=True):
+                if isinstance(entry, dict) and entry.get("actuation") is None:
+                    # the default in effect, so the copy repeats it whatever the defaults
+                    # of a later version (cars: planar until 2026-11-26, then sublane)
+                    entry["actuation"] = platoon.actuation_name
         data["simulation"] = {**(data.get("simulation") or {}), **dataclasses.asdict(simulation)}
 
         def absolute(section: str, key: str) -> None:
@@ -817,17 +825,16 @@ def prepare(source: ScenarioSource) -> RunPlan:
             raise ScenarioError(file, key, str(exc)) from None
     _check_traffic(sc, network, file)
     declared = [(p, f"platoons[{i}]") for i, p in enumerate(sc.platoons) if not p.template]
-    steered = [(key, p.actuation_name) for p, key in declared if _steers(p.actuation_name)]
+    # flows' platoons too: a template naming no actuation gets the cars' default, sublane
+    every = [*declared, *_platoons_from_flows(sc, file)]
+    steered = [(key, p.actuation_name) for p, key in every if _steers(p.actuation_name)]
     if steered and sc.simulation.lateral_resolution_m is None:
         raise ScenarioError(
             file, "simulation.lateral_resolution_m",
             f"{steered[0][0]} uses {steered[0][1]} actuation, which needs SUMO's sublane model",
             "set it (e.g. 0.8), or give the platoons `actuation: lane`",
         )  # fmt: skip
-    platoons = tuple(
-        _prepare_platoon(p, key, network, file)
-        for p, key in [*declared, *_platoons_from_flows(sc, file)]
-    )
+    platoons = tuple(_prepare_platoon(p, key, network, file) for p, key in every)
     return RunPlan(source, net_file, route_files, additional, network, platoons)
 
 
