@@ -268,8 +268,15 @@ def _urban(sc: dict[str, Any]) -> None:
 
 
 def _city(sc: dict[str, Any]) -> None:
-    sc["platoons"] = sc["platoons"][:1]  # the first platoon (west), lane actuation
+    """The first platoon (west) as the log was recorded: lane actuation on the repaired
+    district (the scenario now runs the district as shipped, with sublane actuation)."""
+    sc["platoons"] = sc["platoons"][:1]
     sc["platoons"][0]["follower"]["type"] = RECORDER
+    sc["platoons"][0]["actuation"] = "lane"
+    sc["simulation"]["lateral_resolution_m"] = None
+    sc["network"]["net_file"] = str(REPO / "networks" / "drt_city" / "drt_city.net.xml.gz")
+    for vtype in sc["traffic"]["vehicle_types"]:
+        vtype["lane_change_model"] = "LC2013"  # without the sublane model
 
 
 def _robot(sc: dict[str, Any]) -> None:

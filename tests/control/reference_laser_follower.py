@@ -578,6 +578,16 @@ class ReferenceLaserFollower:
         )
         return replace(cmd, speed_mps=min(cmd.speed_mps, safe))
 
+    def _guard_margin_m(self, obs: Observation) -> float:
+        """The band's margin beside the body: `guard_margin_junction_m` with any of the
+        body in a junction (from the fallback's arc length), else `guard_margin_rel`
+        widths."""
+        p = self.params
+        front_m = self._fallback._s_m + obs.front_offset_m
+        if obs.path is not None and obs.path.junction_within(front_m - obs.length_m, front_m):
+            return p.guard_margin_junction_m
+        return p.guard_margin_rel * obs.width_m
+
     def _arc_clearance(self, obs: Observation, curvature: float) -> float:
         """Free distance from the front bumper along the arc of the given curvature."""
         pts = self._scan_points
@@ -587,7 +597,7 @@ class ReferenceLaserFollower:
         dx = pts[:, 0] - (obs.x_m + obs.front_offset_m * c)
         dy = pts[:, 1] - (obs.y_m + obs.front_offset_m * s)
         x, y = c * dx + s * dy, -s * dx + c * dy
-        half = 0.5 * obs.width_m + 0.25 * obs.width_m
+        half = 0.5 * obs.width_m + self._guard_margin_m(obs)
         if abs(curvature) < 1e-4:
             along, lateral = x, np.abs(y)
         else:
