@@ -150,7 +150,8 @@ class LaserFollowerParams:
     """Lost on the own route: the speed is capped by the laser's clearance along the
     commanded arc, in a band of the body plus this share of its width on each side."""
     guard_margin_junction_m: float = bounded(0.05, ge=0, le=10)
-    """The band's margin on each side while the body is in a junction [m]. A car waiting
+    """The band's margin on each side while the body is in a junction [m]; absolute, not
+    scaled with the width (5 cm is a fifth of a paper robot's width). A car waiting
     inside a junction may stand a few decimetres beside the path (where the network's
     internal lanes come close); with the wide margin the follower stopped beside it in
     the junction, and the waiting car stood there too, to the end (the DRT district)."""

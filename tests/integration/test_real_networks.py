@@ -57,7 +57,7 @@ MOTORWAY_END_S = 500.0
 @pytest.fixture(scope="module")
 def city(tmp_path_factory: pytest.TempPathFactory):
     # platoons depart at 120, 180 and 240 s and all arrive by about 620 s; by 780 s
-    # more than 500 human-driven vehicles have departed; about 70 s wall
+    # more than 500 human-driven vehicles have departed; about 45 s wall
     return _run(tmp_path_factory, "city_platoons", end_s=CITY_END_S)
 
 
