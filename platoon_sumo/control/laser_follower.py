@@ -596,16 +596,19 @@ class LaserFollower:
         follower then drives out on its route before it stops (a car standing inside a
         junction blocks the crossing traffic, which may not expect it there)."""
         self._fallback.advance(obs)
+        stop_m = obs.speed_mps**2 / (2.0 * self.params.comfort_decel_mps2)
+        return self._junction_from_body(obs, stop_m)
+
+    def _junction_from_body(self, obs: Observation, ahead_m: float) -> bool:
+        """Does the route run inside a junction from the rear bumper to `ahead_m` beyond
+        the front one (the fallback's arc length locates the car on its route)?"""
         front_m = self._fallback._s_m + obs.front_offset_m
-        stop_m = front_m + obs.speed_mps**2 / (2.0 * self.params.comfort_decel_mps2)
-        return obs.path.junction_within(front_m - obs.length_m, stop_m)
+        return obs.path.junction_within(front_m - obs.length_m, front_m + ahead_m)
 
     def _guard_margin_m(self, obs: Observation) -> float:
         """The clearance band's margin beside the body (``guard_margin_rel``, or
         ``guard_margin_junction_m`` with any of the body in a junction)."""
-        path = obs.path
-        front_m = self._fallback._s_m + obs.front_offset_m
-        if path is not None and path.junction_within(front_m - obs.length_m, front_m):
+        if obs.path is not None and self._junction_from_body(obs, 0.0):
             return self.params.guard_margin_junction_m
         return self.params.guard_margin_rel * obs.width_m
 

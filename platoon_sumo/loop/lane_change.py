@@ -101,14 +101,13 @@ class LaneChangeGaps:
             targets = targets[targets.index(here) + 1 :]
         move_m = change.end_s_m - change.begin_s_m
         if distance <= 0.0:  # under way: the vehicle ahead in the target lane, and sideways
-            occupants = [
-                o for lane in change.target_lane_ids for o in ctx.backend.lane_occupants(lane)
-            ]
+            on_lane = {lane: ctx.backend.lane_occupants(lane) for lane in change.target_lane_ids}
+            occupants = [o for lane in change.target_lane_ids for o in on_lane[lane]]
             own = change.begin_lane_pos_m - distance
             ahead = [(pos - other_len - own, vid, spd) for vid, pos, spd, other_len in occupants
                      if vid != m.id and pos - other_len > own - 1e-9]  # fmt: skip
             leader = VehicleAhead(min(ahead)[1], min(ahead)[0], min(ahead)[2]) if ahead else None
-            beside = [o for lane in targets for o in ctx.backend.lane_occupants(lane)]
+            beside = [o for lane in targets for o in on_lane[lane]]
             hold = self._sideways_hold_m(ctx, m, change, beside)
             if hold is not None:
                 return LaneChangeAhead(hold, clear=False, target_leader=leader)
