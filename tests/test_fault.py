@@ -156,3 +156,35 @@ def test_a_contact_at_a_cars_centre_gives_the_same_answer_in_either_order():
     base = contact_fault(a, b, 0.0, 1.0, 0.0, None)
     swapped = contact_fault(b, a, 1.0, 0.0, None, 0.0)
     assert swapped.at_fault == (None if base.at_fault is None else 1 - base.at_fault)
+
+
+def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
+    """Found on a race circuit: SUMO's sublane model placed a car leaving a wide junction
+    lane 6 m from where the step began, its rear onto a slow platoon car's front, while
+    its speed and yaw said it drove on along its lane."""
+    slow, placed = car(0.0, 0.0), car(4.3, 0.3)
+    # reported: both drive east, the slow car's front in the other's rear
+    assert contact_fault(slow, placed, 1.2, 8.5).at_fault == 0
+    # measured: the placed car came from 6 m ahead and to the left within the step
+    fault = contact_fault(slow, placed, 1.2, 8.5, motion_a_mps=(1.2, 0.0),
+                          motion_b_mps=(-40.0, -45.0))  # fmt: skip
+    assert (fault.at_fault, fault.reason) == (1, CLOSING)
+
+
+def test_a_front_rammed_by_the_other_is_not_at_fault():
+    """Rule 2 blames a front that touches only when the other does not move towards the
+    contact faster: a car reversing into a slowly following one caused the contact."""
+    follower, reversing = car(0.0, 0.0), car(4.3, 0.0)
+    fault = contact_fault(follower, reversing, 1.0, 3.0, motion_b_mps=(-3.0, 0.0))
+    assert (fault.at_fault, fault.reason) == (1, CLOSING)
+
+
+@settings(max_examples=200, deadline=None)
+@given(scene=scenes)
+def test_measured_motion_along_the_yaw_gives_the_reported_speeds_answer(scene):
+    bx, by, byaw, va, vb, lane_b = scene
+    a, b = car(0.0, 0.0), car(bx, by, byaw)
+    assume(penetration_depths([a], [b])[0] > 0.01)
+    motion_b = (vb * math.cos(byaw), vb * math.sin(byaw))
+    with_motion = contact_fault(a, b, va, vb, 0.0, lane_b, (va, 0.0), motion_b)
+    assert with_motion.at_fault == contact_fault(a, b, va, vb, 0.0, lane_b).at_fault

@@ -112,9 +112,25 @@ class SafetyCheck:
                 for k in (i, j)
             ]
             fault = contact_fault(
-                rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], *lanes
-            )
+                rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
+                _motion(ctx, i), _motion(ctx, j),
+            )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
                 at_fault=(a, b)[fault.at_fault] if fault.at_fault is not None else "",
             )  # fmt: skip
+
+
+def _motion(ctx: StepContext, k: int) -> tuple[float, float] | None:
+    """How row `k` of the world's footprints moved over the step [m/s] (x, y), from the
+    world the step began with; None for a vehicle that was not in it (just departed, or
+    outside the platoons' reach)."""
+    before, rects_before = ctx.sensed_world, ctx.sensed_footprints
+    if before is None or rects_before is None:
+        return None
+    was = before.index.get(ctx.world.ids[k])
+    dt_s = ctx.world.time_s - before.time_s
+    if was is None or dt_s <= 0.0:
+        return None
+    now, then = ctx.footprints[k], rects_before[was]
+    return (float(now[0] - then[0]) / dt_s, float(now[1] - then[1]) / dt_s)

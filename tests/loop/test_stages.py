@@ -319,6 +319,32 @@ def test_safety_check_counts_a_contact_once_when_it_begins(write_scenario):
     assert kinds == [[], hit, [], [], hit]
 
 
+def test_safety_check_blames_the_car_whose_footprint_moved_into_the_other(write_scenario):
+    """At fault is judged on how the footprints moved over the step, not on the speeds
+    reported: a car SUMO places onto a member's front (its rear 7 m back from where the
+    step began, its speed saying it drove on) caused the contact."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)  # p.0's front bumper at x 100
+    backend.vehicles["p.0"].speed_mps = 3.0
+    backend.add_human("h", 112.0, 3.0)
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    Footprints()(ctx)
+    check = SafetyCheck()
+    check(ctx)
+    Sense()(ctx)  # the world the step begins with
+    backend.step()  # both drive on 0.3 m; then SUMO places h 7.8 m back
+    backend.vehicles["h"].x_m -= 7.8  # its rear at x 100.0, p.0's front at 100.3
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    Footprints()(ctx)
+    ctx.events = []
+    check(ctx)
+    hits = [(e.vehicle_id, e.other_id, e.at_fault) for e in ctx.events]
+    assert hits == [("p.0", "h", "h")]
+
+
 def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(write_scenario):
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1), backend)
