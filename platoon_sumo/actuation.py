@@ -218,9 +218,10 @@ class SublaneActuation:
         waits for it.
 
         No sideways move goes into a car beside: one that would bring the vehicle,
-        `SIDEWAYS_CLEARANCE_M` larger, deeper into another within
-        `SIDEWAYS_HORIZON_S` is not made (the lateral speed is 0; SUMO's drivers let
-        our commands through as they come and do not check them)."""
+        `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
+        `SIDEWAYS_HORIZON_S` (every car driving on along its yaw) is not made (the
+        lateral speed is 0; SUMO's drivers let our commands through as they come and do
+        not check them)."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
         speed = np.maximum(batch.state.speed_mps, 0.0)
         new = batch.model.step(
@@ -244,6 +245,7 @@ class SublaneActuation:
             blocked = sideways_conflicts(
                 around.footprints, around.speed_mps, around.rows,
                 lateral * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
+                max(1, round(SIDEWAYS_HORIZON_S / batch.dt_s)),
             )  # fmt: skip
             lateral[blocked] = 0.0
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)

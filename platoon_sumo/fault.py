@@ -5,13 +5,16 @@ reports name their collider themselves.
 
 The rules, in order (docs/metrics.md):
 
+0. **Placed onto the other.** A vehicle whose footprint moved over the step farther
+   than its reported speed covers, by more than `PLACED_M` and faster by more than
+   `PLACED_MPS` (SUMO moved it there; it did not drive there), while the other's did
+   not, is at fault.
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.
 2. **Front into side or rear.** Otherwise, when exactly one vehicle moves towards the
    contact and has it in the front quarter of its body, that vehicle struck the other (a
-   rear-end, a car running into a crossing car's side), unless the other moves towards
-   the contact faster by more than `TIE_MPS` (it reversed or was placed onto the front).
+   rear-end, a car running into a crossing car's side).
 3. **Closing faster.** Otherwise, the vehicle whose velocity points more towards the
    contact, by more than `TIE_MPS`, and towards it at more than `TIE_MPS`.
 4. **Swept into a standing vehicle.** Otherwise, when one vehicle moves (at least
@@ -55,6 +58,15 @@ AT_CENTRE_M = 1e-3
 #: A contact this far forward of the body's centre (share of half the length) is on its front.
 FRONT_SHARE = 0.5
 
+#: A footprint that moved farther than its vehicle's reported speed covers in the step,
+#: by more than PLACED_M [m] and faster by more than PLACED_MPS [m/s], was placed, not
+#: driven: braking hard (9 m/s^2) over a step of up to 1 s leaves at most 4.5 m/s
+#: between the step's mean speed and its end speed, and lane ends meet their junction's
+#: lanes within centimetres; a car SUMO moved out of a wide junction lane landed 6 m
+#: from its last position at 8.5 m/s (an OpenStreetMap race circuit).
+PLACED_M, PLACED_MPS = 1.0, 5.0
+
+PLACED = "placed onto the other (moved farther than its speed)"
 SIDEWAYS = "moved sideways into the other's path"
 FRONT = "front into the other's side or rear"
 CLOSING = "closing faster"
@@ -80,12 +92,13 @@ def contact_fault(
     lane_yaw_b_rad: float | None = None,
     motion_a_mps: tuple[float, float] | None = None,
     motion_b_mps: tuple[float, float] | None = None,
+    step_s: float = 0.1,
 ) -> Fault:
     """Attribute the contact of two overlapping rectangles ``(cx, cy, yaw, length, width)``
     whose vehicles move along their yaw at the given speeds, each on a lane running in
     direction ``lane_yaw`` where it is (None: along the vehicle, no sideways motion).
     ``motion_*_mps``, when given, is the vehicle's measured velocity (x, y) over the
-    step the contact began in (its footprint centre's displacement / step), used
+    step the contact began in (its footprint centre's displacement / `step_s`), used
     instead of speed along yaw."""
     rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
     corners = rectangle_corners(rects)
@@ -95,12 +108,13 @@ def contact_fault(
     else:
         cx, cy = overlap.centroid.x, overlap.centroid.y
     lanes = (lane_yaw_a_rad, lane_yaw_b_rad)
+    reported = (float(speed_a_mps), float(speed_b_mps))
     velocity = [
         (float(m[0]), float(m[1]))
         if m is not None
         else (v * math.cos(r[YAW]), v * math.sin(r[YAW]))
         for v, r, m in zip(
-            (float(speed_a_mps), float(speed_b_mps)),
+            reported,
             rects,
             (motion_a_mps, motion_b_mps),
             strict=True,
@@ -135,15 +149,17 @@ def contact_fault(
         ahead = (cx - rects[i, CX]) * c + (cy - rects[i, CY]) * s
         return ahead >= FRONT_SHARE * 0.5 * rects[i, LENGTH] and closing(i) > TIE_MPS
 
+    excess = [speeds[i] - abs(reported[i]) for i in (0, 1)]
+    placed = [e > PLACED_MPS and e * step_s > PLACED_M for e in excess]
+    if placed[0] != placed[1]:
+        return Fault(0 if placed[0] else 1, PLACED, cx, cy)
     into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
     if into[0] != into[1]:
         return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)
-    close = [closing(i) for i in (0, 1)]
     fronts = [struck_with_front(i) for i in (0, 1)]
     if fronts[0] != fronts[1]:
-        striker = 0 if fronts[0] else 1
-        if close[1 - striker] <= close[striker] + TIE_MPS:  # not rammed by the other
-            return Fault(striker, FRONT, cx, cy)
+        return Fault(0 if fronts[0] else 1, FRONT, cx, cy)
+    close = [closing(i) for i in (0, 1)]
     if abs(close[0] - close[1]) > TIE_MPS and max(close) > TIE_MPS:
         return Fault(0 if close[0] > close[1] else 1, CLOSING, cx, cy)
     moving = [abs(s) >= TIE_MPS for s in speeds]

@@ -10,8 +10,11 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from platoon_sumo.fault import CLOSING, FRONT, SIDEWAYS, SWEPT, contact_fault
+from platoon_sumo.fault import CLOSING, FRONT, PLACED, SIDEWAYS, SWEPT, contact_fault
 from platoon_sumo.geometry import penetration_depths
+from platoon_sumo.loop.relations import _lane_yaw
+from platoon_sumo.sumo.network import Network
+from tests.helpers import REPO
 
 L, W = 4.5, 1.8
 
@@ -168,15 +171,16 @@ def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
     # measured: the placed car came from 6 m ahead and to the left within the step
     fault = contact_fault(slow, placed, 1.2, 8.5, motion_a_mps=(1.2, 0.0),
                           motion_b_mps=(-40.0, -45.0))  # fmt: skip
-    assert (fault.at_fault, fault.reason) == (1, CLOSING)
-
-
-def test_a_front_rammed_by_the_other_is_not_at_fault():
-    """Rule 2 blames a front that touches only when the other does not move towards the
-    contact faster: a car reversing into a slowly following one caused the contact."""
-    follower, reversing = car(0.0, 0.0), car(4.3, 0.0)
-    fault = contact_fault(follower, reversing, 1.0, 3.0, motion_b_mps=(-3.0, 0.0))
-    assert (fault.at_fault, fault.reason) == (1, CLOSING)
+    assert (fault.at_fault, fault.reason) == (1, PLACED)
+    # landing ahead of the slow car, moving away from the contact: still the placed one
+    fault = contact_fault(slow, placed, 1.2, 8.5, motion_a_mps=(1.2, 0.0),
+                          motion_b_mps=(62.7, -1.9))  # fmt: skip
+    assert (fault.at_fault, fault.reason) == (1, PLACED)
+    # driven there: 4.5 m/s over its end speed after braking at 9 m/s^2 over a 1 s step,
+    # or a 0.5 m seam between a junction's lane and the next in a 0.05 s step
+    for motion_b, step_s in (((13.0, 0.0), 1.0), ((18.5, 0.0), 0.05)):
+        fault = contact_fault(slow, placed, 1.2, 8.5, None, None, (1.2, 0.0), motion_b, step_s)
+        assert (fault.at_fault, fault.reason) == (0, FRONT)
 
 
 @settings(max_examples=200, deadline=None)
@@ -188,3 +192,18 @@ def test_measured_motion_along_the_yaw_gives_the_reported_speeds_answer(scene):
     motion_b = (vb * math.cos(byaw), vb * math.sin(byaw))
     with_motion = contact_fault(a, b, va, vb, 0.0, lane_b, (va, 0.0), motion_b)
     assert with_motion.at_fault == contact_fault(a, b, va, vb, 0.0, lane_b).at_fault
+
+
+def test_the_sideways_rule_waits_until_the_whole_body_is_on_the_lane():
+    """Found on a race circuit: a car turning out of a junction, its front on the next
+    edge, heads along the turn, up to 90 degrees off the lane it enters; its motion
+    across that lane is the turn, not a lane change (the rule is off in junctions)."""
+    net = Network(REPO / "networks" / "straight" / "straight.net.xml")  # WE_0: x 0..3000
+    frame = net.lane_frame("WE_0", -1.0, -5.0)
+    assert frame is not None and frame[0] == 0.0 and frame[1] == -1.0  # before the start
+    assert net.lane_frame("WE_0", 1200.0, -4.0) == (0.0, 1200.0)
+    entering = np.array([1.0, -5.25, 0.5, L, W])  # centre 1 m in: the rear still before it
+    on_lane = np.array([50.0, -5.25, 0.5, L, W])
+    assert _lane_yaw(net, "WE_0", entering) is None
+    assert _lane_yaw(net, "WE_0", on_lane) == 0.0
+    assert _lane_yaw(net, ":junction_0_0", on_lane) is None

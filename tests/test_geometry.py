@@ -361,6 +361,18 @@ def test_steering_into_a_car_ahead_in_the_next_lane_conflicts():
     assert not conflicts([ahead_right], shift=-0.5, speed=0.0, other_speed=3.0)  # it leaves
 
 
+def test_a_car_passing_beside_at_speed_conflicts_while_it_is_level():
+    """Found on a race circuit: a SUMO car overtaking at 19 m/s 0.3 m beside a platoon
+    car at 2.6 m/s drifting towards it was level with it for two steps and 7 m past it
+    at the horizon's end, where alone the move was checked."""
+    passing = (-2.0, 2.1, 0.0, 4.5, 1.8)  # beside-left, 0.3 m clear, closing up at 19 m/s
+    rects = np.array([OWN, passing])
+    speeds, own, shift = np.array([2.6, 19.0]), np.array([0]), np.array([0.5])
+    assert sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 5)[0]
+    assert not sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 1)[0]  # the end only
+    assert not sideways_conflicts(rects, speeds, own, -shift, 0.5, 0.2, 5)[0]  # away from it
+
+
 def test_vehicles_outside_the_world_or_not_moving_sideways_never_conflict():
     rects = np.array([OWN, (0.0, 1.5, 0.0, 4.5, 1.8)])
     out = sideways_conflicts(rects, np.zeros(2), np.array([-1, 0]), np.array([1.0, 0.0]), 0.5, 0.2)

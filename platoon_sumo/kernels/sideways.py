@@ -22,44 +22,66 @@ def sideways_conflicts(
     shift_m: np.ndarray,
     horizon_s: float,
     margin_m: float,
+    samples: int = 1,
 ) -> np.ndarray:
     """Would moving each subject sideways bring it into another vehicle?
 
     Every rectangle (rows of `rects`: centre x, y, yaw, length, width) advances along
-    its yaw at its speed for `horizon_s`; subject k (`subjects[k]`, a row of `rects`; -1:
-    not in the world) is also shifted by `shift_m[k]` to its left (negative: right). A
-    conflict is another rectangle that the shifted subject, `margin_m` larger on every
-    side, overlaps deeper than the unshifted one does: the sideways part of the move,
-    not driving on, causes it (a car closing on the one ahead in its lane is the
-    longitudinal layer's business)."""
+    its yaw at its speed; subject k (`subjects[k]`, a row of `rects`; -1: not in the
+    world) is also shifted to its left (negative: right), by `shift_m[k]` at
+    `horizon_s` and in proportion before. A conflict is another rectangle that the
+    shifted subject, `margin_m` larger on every side, overlaps deeper than the
+    unshifted one does, at any of `samples` evenly spaced times up to the horizon (a
+    car passing beside at speed is level with the subject now and gone at the
+    horizon's end): the sideways part of the move, not driving on, causes it (a car
+    closing on the one ahead in its lane is the longitudinal layer's business)."""
     n = rects.shape[0]
     out = np.zeros(subjects.shape[0], dtype=np.bool_)
     ax = np.empty(n)
     ay = np.empty(n)
     radius = np.empty(n)
     for i in range(n):
-        ax[i] = rects[i, 0] + math.cos(rects[i, 2]) * speed_mps[i] * horizon_s
-        ay[i] = rects[i, 1] + math.sin(rects[i, 2]) * speed_mps[i] * horizon_s
         radius[i] = 0.5 * math.hypot(rects[i, 3], rects[i, 4])
-    for k in range(subjects.shape[0]):
-        j = subjects[k]
-        shift = shift_m[k]
-        if j < 0 or shift == 0.0:
-            continue
-        ca, sa = math.cos(rects[j, 2]), math.sin(rects[j, 2])
-        hl, hw = 0.5 * rects[j, 3] + margin_m, 0.5 * rects[j, 4] + margin_m
-        sx, sy = ax[j] - sa * shift, ay[j] + ca * shift
-        reach = math.hypot(hl, hw)
+    for sample in range(1, samples + 1):
+        share = sample / samples
+        time_s = horizon_s * share
         for i in range(n):
-            if i == j or math.hypot(ax[i] - sx, ay[i] - sy) > reach + radius[i]:
+            ax[i] = rects[i, 0] + math.cos(rects[i, 2]) * speed_mps[i] * time_s
+            ay[i] = rects[i, 1] + math.sin(rects[i, 2]) * speed_mps[i] * time_s
+        for k in range(subjects.shape[0]):
+            j = subjects[k]
+            shift = shift_m[k] * share
+            if j < 0 or shift == 0.0 or out[k]:
                 continue
-            cb, sb = math.cos(rects[i, 2]), math.sin(rects[i, 2])
-            bhl, bhw = 0.5 * rects[i, 3], 0.5 * rects[i, 4]
-            after = rectangle_depth(sx, sy, ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
-            if after <= 0.0:
-                continue
-            before = rectangle_depth(ax[j], ay[j], ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
-            if after > before + DEEPER_M:
-                out[k] = True
-                break
+            out[k] = _deeper(rects, ax, ay, radius, j, shift, margin_m)
     return out
+
+
+@njit(cache=True)
+def _deeper(
+    rects: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    radius: np.ndarray,
+    j: int,
+    shift: float,
+    margin_m: float,
+) -> bool:
+    """Does rectangle j at (ax, ay), `margin_m` larger and shifted `shift` to its left,
+    overlap another rectangle deeper than unshifted?"""
+    ca, sa = math.cos(rects[j, 2]), math.sin(rects[j, 2])
+    hl, hw = 0.5 * rects[j, 3] + margin_m, 0.5 * rects[j, 4] + margin_m
+    sx, sy = ax[j] - sa * shift, ay[j] + ca * shift
+    reach = math.hypot(hl, hw)
+    for i in range(rects.shape[0]):
+        if i == j or math.hypot(ax[i] - sx, ay[i] - sy) > reach + radius[i]:
+            continue
+        cb, sb = math.cos(rects[i, 2]), math.sin(rects[i, 2])
+        bhl, bhw = 0.5 * rects[i, 3], 0.5 * rects[i, 4]
+        after = rectangle_depth(sx, sy, ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
+        if after <= 0.0:
+            continue
+        before = rectangle_depth(ax[j], ay[j], ca, sa, hl, hw, ax[i], ay[i], cb, sb, bhl, bhw)
+        if after > before + DEEPER_M:
+            return True
+    return False

@@ -4,13 +4,24 @@ controller reads any of it."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from platoon_sumo.events import WALL, EventKind, Onset
 from platoon_sumo.fault import contact_fault
-from platoon_sumo.geometry import overlapping_pairs, rectangles_crossing_segments
+from platoon_sumo.geometry import (
+    CX,
+    CY,
+    LENGTH,
+    YAW,
+    overlapping_pairs,
+    rectangles_crossing_segments,
+)
 from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.ports import FloatArray
 from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids
+from platoon_sumo.sumo.network import Network
 
 
 class Predecessors:
@@ -105,20 +116,33 @@ class SafetyCheck:
             if ctx.fleet.get(a) is None:
                 a, b = b, a  # the platoon vehicle first
             i, j = world.index[a], world.index[b]
-            lanes = [  # inside a junction nobody changes lanes: no sideways rule there
-                network.lane_direction_rad(world.lane_ids[k], rects[k, 0], rects[k, 1])
-                if world.lane_ids[k] and not world.lane_ids[k].startswith(":")
-                else None
-                for k in (i, j)
-            ]
+            lanes = [_lane_yaw(network, world.lane_ids[k], rects[k]) for k in (i, j)]
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
-                _motion(ctx, i), _motion(ctx, j),
+                _motion(ctx, i), _motion(ctx, j), ctx.dt_s,
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
                 at_fault=(a, b)[fault.at_fault] if fault.at_fault is not None else "",
             )  # fmt: skip
+
+
+def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:
+    """The direction of the lane a vehicle drives along where its body is, for the
+    sideways rule; None while any of the body is in a junction, where nobody changes
+    lanes: the front on an internal lane, or the rear not yet past the start of the
+    front's lane (a car turning out of a junction: its heading is the turn's, up to 90
+    degrees off the lane it is entering)."""
+    if not lane_id or lane_id.startswith(":"):
+        return None
+    half = 0.5 * rect[LENGTH]
+    rear_x = rect[CX] - half * math.cos(rect[YAW])
+    rear_y = rect[CY] - half * math.sin(rect[YAW])
+    rear = network.lane_frame(lane_id, rear_x, rear_y)
+    if rear is None or rear[1] < 0.0:
+        return None
+    centre = network.lane_frame(lane_id, rect[CX], rect[CY])
+    return None if centre is None else centre[0]
 
 
 def _motion(ctx: StepContext, k: int) -> tuple[float, float] | None:
