@@ -61,9 +61,9 @@ FRONT_SHARE = 0.5
 #: A footprint that moved farther than its vehicle's reported speed covers in the step,
 #: by more than PLACED_M [m] and faster by more than PLACED_MPS [m/s], was placed, not
 #: driven: braking hard (9 m/s^2) over a step of up to 1 s leaves at most 4.5 m/s
-#: between the step's mean speed and its end speed, and lane ends meet their junction's
-#: lanes within centimetres; a car SUMO moved out of a wide junction lane landed 6 m
-#: from its last position at 8.5 m/s (an OpenStreetMap race circuit).
+#: between the step's mean speed and its end speed; a car SUMO moved out of a wide
+#: junction lane landed 6 m from its last position at 8.5 m/s (an OpenStreetMap race
+#: circuit).
 PLACED_M, PLACED_MPS = 1.0, 5.0
 
 PLACED = "placed onto the other (moved farther than its speed)"
