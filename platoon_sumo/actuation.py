@@ -245,7 +245,7 @@ class SublaneActuation:
             blocked = sideways_conflicts(
                 around.footprints, around.speed_mps, around.rows,
                 lateral * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
-                max(1, round(SIDEWAYS_HORIZON_S / batch.dt_s)),
+                batch.dt_s,
             )  # fmt: skip
             lateral[blocked] = 0.0
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)

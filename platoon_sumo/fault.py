@@ -21,8 +21,9 @@ The rules, in order (docs/metrics.md):
    `TIE_MPS`) and the other stands, the mover (its body swept into the other, e.g. its
    rear swinging out in a turn); else nobody (``None``).
 
-A vehicle slower than `TIE_MPS` is never at fault: SUMO reports a stopped car's speed
-as rounding noise (1e-15 m/s), which must not decide.
+A vehicle slower than `TIE_MPS` (its measured motion, else its reported speed) is never
+at fault by rules 1-4: SUMO reports a stopped car's speed as rounding noise (1e-15
+m/s), which must not decide.
 
 A vehicle's motion is, where known, how its footprint moved over the step in which the
 contact began, not its reported speed along its yaw: SUMO's sublane model places cars

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -177,7 +178,7 @@ def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
                           motion_b_mps=(62.7, -1.9))  # fmt: skip
     assert (fault.at_fault, fault.reason) == (1, PLACED)
     # driven there: 4.5 m/s over its end speed after braking at 9 m/s^2 over a 1 s step,
-    # or a 0.5 m seam between a junction's lane and the next in a 0.05 s step
+    # or moving 0.5 m beyond its speed in a 0.05 s step (10 m/s more, but under 1 m)
     for motion_b, step_s in (((13.0, 0.0), 1.0), ((18.5, 0.0), 0.05)):
         fault = contact_fault(slow, placed, 1.2, 8.5, None, None, (1.2, 0.0), motion_b, step_s)
         assert (fault.at_fault, fault.reason) == (0, FRONT)
@@ -196,14 +197,21 @@ def test_measured_motion_along_the_yaw_gives_the_reported_speeds_answer(scene):
 
 def test_the_sideways_rule_waits_until_the_whole_body_is_on_the_lane():
     """Found on a race circuit: a car turning out of a junction, its front on the next
-    edge, heads along the turn, up to 90 degrees off the lane it enters; its motion
-    across that lane is the turn, not a lane change (the rule is off in junctions)."""
+    edge, heads along the turn, up to 140 degrees off the lane it enters on a ramp
+    netconvert invented; its motion across that lane is the turn, not a lane change
+    (the rule is off in junctions). On the lane as SUMO counts it: the front at least
+    a vehicle length into it."""
     net = Network(REPO / "networks" / "straight" / "straight.net.xml")  # WE_0: x 0..3000
-    frame = net.lane_frame("WE_0", -1.0, -5.0)
-    assert frame is not None and frame[0] == 0.0 and frame[1] == -1.0  # before the start
-    assert net.lane_frame("WE_0", 1200.0, -4.0) == (0.0, 1200.0)
-    entering = np.array([1.0, -5.25, 0.5, L, W])  # centre 1 m in: the rear still before it
-    on_lane = np.array([50.0, -5.25, 0.5, L, W])
-    assert _lane_yaw(net, "WE_0", entering) is None
-    assert _lane_yaw(net, "WE_0", on_lane) == 0.0
-    assert _lane_yaw(net, ":junction_0_0", on_lane) is None
+    assert net.lane_frame("WE_0", -1.0, -5.0) == (0.0, 0.0)  # before the start: clipped
+    assert net.lane_frame("WE_0", 1200.0, -4.0) == pytest.approx((0.0, 1200.0))
+
+    def body(front_x_m: float, heading_deg: float) -> np.ndarray:
+        yaw = math.radians(heading_deg)  # the body behind the front bumper, any heading
+        return np.array([front_x_m - 0.5 * L * math.cos(yaw), -5.25 - 0.5 * L * math.sin(yaw),
+                         yaw, L, W])  # fmt: skip
+
+    for heading in (0.0, 30.0, 80.0, 100.0, 140.0, -140.0):
+        assert _lane_yaw(net, "WE_0", body(3.0, heading)) is None  # front 3 m in
+    assert _lane_yaw(net, "WE_0", body(4.6, 0.0)) == 0.0
+    assert _lane_yaw(net, "WE_0", body(50.0, 20.0)) == 0.0  # a lane change: the lane's
+    assert _lane_yaw(net, ":junction_0_0", body(50.0, 0.0)) is None

@@ -368,9 +368,10 @@ def test_a_car_passing_beside_at_speed_conflicts_while_it_is_level():
     passing = (-2.0, 2.1, 0.0, 4.5, 1.8)  # beside-left, 0.3 m clear, closing up at 19 m/s
     rects = np.array([OWN, passing])
     speeds, own, shift = np.array([2.6, 19.0]), np.array([0]), np.array([0.5])
-    assert sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 5)[0]
-    assert not sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 1)[0]  # the end only
-    assert not sideways_conflicts(rects, speeds, own, -shift, 0.5, 0.2, 5)[0]  # away from it
+    assert sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 0.1)[0]
+    assert sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2, 0.15)[0]  # 0.15, 0.3, ...
+    assert not sideways_conflicts(rects, speeds, own, shift, 0.5, 0.2)[0]  # the end only
+    assert not sideways_conflicts(rects, speeds, own, -shift, 0.5, 0.2, 0.1)[0]  # away from it
 
 
 def test_vehicles_outside_the_world_or_not_moving_sideways_never_conflict():

@@ -22,7 +22,7 @@ def sideways_conflicts(
     shift_m: np.ndarray,
     horizon_s: float,
     margin_m: float,
-    samples: int = 1,
+    step_s: float = 0.0,
 ) -> np.ndarray:
     """Would moving each subject sideways bring it into another vehicle?
 
@@ -31,10 +31,11 @@ def sideways_conflicts(
     world) is also shifted to its left (negative: right), by `shift_m[k]` at
     `horizon_s` and in proportion before. A conflict is another rectangle that the
     shifted subject, `margin_m` larger on every side, overlaps deeper than the
-    unshifted one does, at any of `samples` evenly spaced times up to the horizon (a
-    car passing beside at speed is level with the subject now and gone at the
-    horizon's end): the sideways part of the move, not driving on, causes it (a car
-    closing on the one ahead in its lane is the longitudinal layer's business)."""
+    unshifted one does, at the end of every step of `step_s` within the horizon and at
+    the horizon (only there with `step_s` 0: a car passing beside at speed is level
+    with the subject now and gone at the horizon's end): the sideways part of the move,
+    not driving on, causes it (a car closing on the one ahead in its lane is the
+    longitudinal layer's business)."""
     n = rects.shape[0]
     out = np.zeros(subjects.shape[0], dtype=np.bool_)
     ax = np.empty(n)
@@ -42,9 +43,10 @@ def sideways_conflicts(
     radius = np.empty(n)
     for i in range(n):
         radius[i] = 0.5 * math.hypot(rects[i, 3], rects[i, 4])
+    samples = max(1, math.ceil(horizon_s / step_s - 1e-9)) if step_s > 0.0 else 1
     for sample in range(1, samples + 1):
-        share = sample / samples
-        time_s = horizon_s * share
+        time_s = min(sample * step_s, horizon_s) if step_s > 0.0 else horizon_s
+        share = time_s / horizon_s if horizon_s > 0.0 else 1.0
         for i in range(n):
             ax[i] = rects[i, 0] + math.cos(rects[i, 2]) * speed_mps[i] * time_s
             ay[i] = rects[i, 1] + math.sin(rects[i, 2]) * speed_mps[i] * time_s

@@ -119,7 +119,7 @@ class SafetyCheck:
             lanes = [_lane_yaw(network, world.lane_ids[k], rects[k]) for k in (i, j)]
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
-                _motion(ctx, i), _motion(ctx, j), ctx.dt_s,
+                *_motions(ctx, i, j),
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
@@ -129,32 +129,38 @@ class SafetyCheck:
 
 def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:
     """The direction of the lane a vehicle drives along where its body is, for the
-    sideways rule; None while any of the body is in a junction, where nobody changes
-    lanes: the front on an internal lane, or the rear not yet past the start of the
-    front's lane (a car turning out of a junction: its heading is the turn's, up to 90
-    degrees off the lane it is entering)."""
+    sideways rule; None while part of the body is off that lane, as SUMO counts it
+    (its front less than a vehicle length into the lane): on an internal lane, or
+    turning out of a junction (whose heading is the turn's, up to 140 degrees off the
+    lane it enters on netconvert's invented ramps), or just past an edge's end."""
     if not lane_id or lane_id.startswith(":"):
         return None
-    half = 0.5 * rect[LENGTH]
-    rear_x = rect[CX] - half * math.cos(rect[YAW])
-    rear_y = rect[CY] - half * math.sin(rect[YAW])
-    rear = network.lane_frame(lane_id, rear_x, rear_y)
-    if rear is None or rear[1] < 0.0:
+    length = rect[LENGTH]
+    front_x = rect[CX] + 0.5 * length * math.cos(rect[YAW])
+    front_y = rect[CY] + 0.5 * length * math.sin(rect[YAW])
+    front = network.lane_frame(lane_id, front_x, front_y)
+    if front is None or front[1] < length:
         return None
     centre = network.lane_frame(lane_id, rect[CX], rect[CY])
     return None if centre is None else centre[0]
 
 
-def _motion(ctx: StepContext, k: int) -> tuple[float, float] | None:
-    """How row `k` of the world's footprints moved over the step [m/s] (x, y), from the
-    world the step began with; None for a vehicle that was not in it (just departed, or
-    outside the platoons' reach)."""
+def _motions(
+    ctx: StepContext, i: int, j: int
+) -> tuple[tuple[float, float] | None, tuple[float, float] | None, float]:
+    """How rows `i` and `j` of the world's footprints moved over the step [m/s] (x, y),
+    from the world the step began with (None for a vehicle not in it: just departed, or
+    outside the platoons' reach), and the interval between the two worlds [s]."""
     before, rects_before = ctx.sensed_world, ctx.sensed_footprints
-    if before is None or rects_before is None:
-        return None
-    was = before.index.get(ctx.world.ids[k])
+    if before is None or rects_before is None or ctx.world.time_s <= before.time_s:
+        return None, None, ctx.dt_s
     dt_s = ctx.world.time_s - before.time_s
-    if was is None or dt_s <= 0.0:
-        return None
-    now, then = ctx.footprints[k], rects_before[was]
-    return (float(now[0] - then[0]) / dt_s, float(now[1] - then[1]) / dt_s)
+
+    def motion(k: int) -> tuple[float, float] | None:
+        was = before.index.get(ctx.world.ids[k])
+        if was is None:
+            return None
+        now, then = ctx.footprints[k], rects_before[was]
+        return (float(now[0] - then[0]) / dt_s, float(now[1] - then[1]) / dt_s)
+
+    return motion(i), motion(j), dt_s

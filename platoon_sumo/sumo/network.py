@@ -81,9 +81,9 @@ class Network:
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
 
     def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
-        """(direction [rad], position [m]) of the lane's centre-line segment nearest to
-        (x, y): its direction, and the point's distance along the lane from its start
-        (negative before the start); None for an unknown lane."""
+        """(direction [rad], position [m]) at the point of the lane's centre line nearest
+        to (x, y): the direction of its segment, and its distance along the lane from
+        the start (0 to the lane's length); None for an unknown lane."""
         try:
             shape = self.lane_shape(lane_id)
         except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
@@ -92,13 +92,11 @@ class Network:
             return None
         a, d = shape[:-1], np.diff(shape, axis=0)
         length2 = np.maximum((d * d).sum(axis=1), 1e-12)
-        along = ((np.array([x_m, y_m]) - a) * d).sum(axis=1) / length2
-        t = np.clip(along, 0.0, 1.0)
+        t = np.clip(((np.array([x_m, y_m]) - a) * d).sum(axis=1) / length2, 0.0, 1.0)
         nearest = a + t[:, None] * d
         k = int(np.argmin(np.hypot(*(nearest - (x_m, y_m)).T)))
         seg = np.sqrt(length2)
-        start_m = float(seg[:k].sum())
-        position = start_m + float((along[k] if k == 0 else t[k]) * seg[k])
+        position = float(seg[:k].sum() + t[k] * seg[k])
         return float(np.arctan2(d[k, 1], d[k, 0])), position
 
     def road_area(self) -> BaseGeometry:

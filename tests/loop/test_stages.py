@@ -15,6 +15,7 @@ from platoon_sumo.control import Command
 from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import PluginError
 from platoon_sumo.events import EventKind
+from platoon_sumo.fault import PLACED
 from platoon_sumo.loop.actuate import Actuate, ReadBack
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepHook
 from platoon_sumo.loop.decision import Decide
@@ -322,11 +323,13 @@ def test_safety_check_counts_a_contact_once_when_it_begins(write_scenario):
 def test_safety_check_blames_the_car_whose_footprint_moved_into_the_other(write_scenario):
     """At fault is judged on how the footprints moved over the step, not on the speeds
     reported: a car SUMO places onto a member's front (its rear 7 m back from where the
-    step began, its speed saying it drove on) caused the contact."""
+    step began, its speed saying it drove on) caused the contact. Another car leaves
+    the world in that step, so the two worlds' rows differ."""
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1), backend)
     departed(ctx, backend)  # p.0's front bumper at x 100
     backend.vehicles["p.0"].speed_mps = 3.0
+    backend.add_human("g", 130.0, 3.0)  # the row before h's, gone after the step
     backend.add_human("h", 112.0, 3.0)
     ObserveWorld()(ctx)
     ReadBack()(ctx)
@@ -336,13 +339,14 @@ def test_safety_check_blames_the_car_whose_footprint_moved_into_the_other(write_
     Sense()(ctx)  # the world the step begins with
     backend.step()  # both drive on 0.3 m; then SUMO places h 7.8 m back
     backend.vehicles["h"].x_m -= 7.8  # its rear at x 100.0, p.0's front at 100.3
+    del backend.vehicles["g"]
     ObserveWorld()(ctx)
     ReadBack()(ctx)
     Footprints()(ctx)
     ctx.events = []
     check(ctx)
-    hits = [(e.vehicle_id, e.other_id, e.at_fault) for e in ctx.events]
-    assert hits == [("p.0", "h", "h")]
+    hits = [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+    assert hits == [("p.0", "h", "h", PLACED)]
 
 
 def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(write_scenario):
