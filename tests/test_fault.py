@@ -184,6 +184,32 @@ def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
         assert (fault.at_fault, fault.reason) == (0, FRONT)
 
 
+motions = st.tuples(st.floats(-20.0, 20.0), st.floats(-20.0, 20.0))
+
+
+@settings(max_examples=300, deadline=None)
+@given(scene=scenes, motion_a=motions, motion_b=motions)
+def test_attribution_by_measured_motion_is_invariant_to_naming_order(scene, motion_a, motion_b):
+    bx, by, byaw, va, vb, lane_b = scene
+    a, b = car(0.0, 0.0), car(bx, by, byaw)
+    assume(math.hypot(bx, by) > 0.5 and penetration_depths([a], [b])[0] > 0.01)
+    base = contact_fault(a, b, va, vb, 0.0, lane_b, motion_a, motion_b)
+    swapped = contact_fault(b, a, vb, va, lane_b, 0.0, motion_b, motion_a)
+    assert swapped.at_fault == (None if base.at_fault is None else 1 - base.at_fault)
+
+
+@settings(max_examples=300, deadline=None)
+@given(scene=scenes, motion_b=motions, creep=st.floats(0.0, 0.099))
+def test_a_vehicle_whose_footprint_stands_is_never_at_fault(scene, motion_b, creep):
+    """Measured: a footprint moving slower than 0.1 m/s (whatever speed it reports,
+    here 5 m/s) does not cause a contact, unless SUMO placed it."""
+    bx, by, byaw, _, vb, lane_b = scene
+    assume(penetration_depths([car(0.0, 0.0)], [car(bx, by, byaw)])[0] > 0.01)
+    fault = contact_fault(car(0.0, 0.0), car(bx, by, byaw), 5.0, vb, 0.0, lane_b,
+                          (creep, 0.0), motion_b)  # fmt: skip
+    assert fault.at_fault != 0
+
+
 @settings(max_examples=200, deadline=None)
 @given(scene=scenes)
 def test_measured_motion_along_the_yaw_gives_the_reported_speeds_answer(scene):
