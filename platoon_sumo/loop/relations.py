@@ -129,10 +129,10 @@ class SafetyCheck:
 
 def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:
     """The direction of the lane a vehicle drives along where its body is, for the
-    sideways rule; None while part of the body is off that lane, as SUMO counts it
-    (its front less than a vehicle length into the lane): on an internal lane, or
-    turning out of a junction (whose heading is the turn's, up to 140 degrees off the
-    lane it enters on netconvert's invented ramps), or just past an edge's end."""
+    sideways rule; None on an internal lane, and while part of the body is still
+    behind the lane's start, as SUMO counts it (the front less than a vehicle length
+    into the lane): turning out of a junction, the heading is the turn's, up to 140
+    degrees off the lane entered on netconvert's invented ramps."""
     if not lane_id or lane_id.startswith(":"):
         return None
     length = rect[LENGTH]
