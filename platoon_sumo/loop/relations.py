@@ -4,8 +4,6 @@ controller reads any of it."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from platoon_sumo.events import WALL, EventKind, Onset
@@ -15,6 +13,7 @@ from platoon_sumo.geometry import (
     CY,
     LENGTH,
     YAW,
+    centre_to_front_bumper,
     overlapping_pairs,
     rectangles_crossing_segments,
 )
@@ -135,11 +134,9 @@ def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:
     degrees off the lane entered on netconvert's invented ramps."""
     if not lane_id or lane_id.startswith(":"):
         return None
-    length = rect[LENGTH]
-    front_x = rect[CX] + 0.5 * length * math.cos(rect[YAW])
-    front_y = rect[CY] + 0.5 * length * math.sin(rect[YAW])
-    front = network.lane_frame(lane_id, front_x, front_y)
-    if front is None or front[1] < length:
+    front_x, front_y = centre_to_front_bumper(rect[CX], rect[CY], rect[YAW], rect[LENGTH])
+    front = network.lane_frame(lane_id, float(front_x), float(front_y))
+    if front is None or front[1] < rect[LENGTH]:
         return None
     centre = network.lane_frame(lane_id, rect[CX], rect[CY])
     return None if centre is None else centre[0]
