@@ -389,26 +389,14 @@ class RoutePath:
             use_hint, hint, window, float(x_m), float(y_m),
         )  # fmt: skip
 
-    def curvature_1pm(self, smoothing_m: float, in_junctions: bool = True) -> FloatArray:
-        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length.
-
-        `in_junctions=False` leaves out the bends of junctions' internal lanes and the
-        corners where they meet the edges' lanes (0 there): for a vehicle SUMO moves
-        along its lanes, which take such a lane at its speed limit, netconvert's turn
-        speed. Junction shapes can make those corners far sharper than the road: a lane
-        jogging 4.8 m sideways within 0.3 m on a motorway, 140 degrees between an
-        invented ramp's internal lane and the ramp, which SUMO's cars take at speed."""
+    def curvature_1pm(self, smoothing_m: float) -> FloatArray:
+        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length."""
         d = np.diff(self.xy_m, axis=0)
         heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
         seg = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
         kappa = np.zeros(len(self.xy_m))
         if len(heading) > 1:
             kappa[1:-1] = np.abs(np.diff(heading)) / (0.5 * (seg[1:] + seg[:-1]))
-        if not in_junctions:  # a point's curvature uses its neighbours: theirs count too
-            junction = self._junction_points.copy()
-            junction[1:] |= self._junction_points[:-1]
-            junction[:-1] |= self._junction_points[1:]
-            kappa[junction] = 0.0
         width = max(1, round(smoothing_m / self.spacing_m))
         kernel = np.ones(width) / width
         return np.asarray(np.convolve(kappa, kernel, mode="same"), dtype=np.float64)
