@@ -5,10 +5,10 @@ reports name their collider themselves.
 
 The rules, in order (docs/metrics.md):
 
-0. **Placed onto the other.** A vehicle whose footprint moved over the step farther
-   than its reported speed covers, by more than `PLACED_M` and faster by more than
-   `PLACED_MPS` (SUMO moved it there; it did not drive there), while the other's did
-   not, is at fault.
+0. **Placed onto the other.** A vehicle whose footprint's centre, or its body at the
+   contact, moved over the step farther than its reported speed covers, by more than
+   `PLACED_M` and faster by more than `PLACED_MPS` (SUMO moved or turned it there; it
+   did not drive there), while the other's did not, is at fault.
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.
@@ -25,12 +25,13 @@ A vehicle slower than `TIE_MPS` (its measured motion, else its reported speed) i
 at fault by rules 1-4: SUMO reports a stopped car's speed as rounding noise (1e-15
 m/s), which must not decide.
 
-A vehicle's motion is, where known, how its footprint moved over the step in which the
-contact began, not its reported speed along its yaw: SUMO's sublane model places cars
-that leave a wide junction lane several metres from where the step began (4.9 to 6.3 m
-in 0.1 s at 7-8.5 m/s, measured on an OpenStreetMap race circuit), and turns cars
-offset inside a tight bend by up to 50 degrees a step; the reported speed and yaw then
-say the car drove along its lane while its body landed on another car.
+A vehicle's motion is, where known, how its footprint moved and turned over the step
+in which the contact began, not its reported speed along its yaw: SUMO's sublane model
+places cars that leave a wide junction lane several metres from where the step began
+(4.9 to 6.3 m in 0.1 s at 7-8.5 m/s, measured on an OpenStreetMap race circuit), and
+turns cars in a tight bend by up to 50 degrees a step (a 5 m car's rear then sweeps
+3 m sideways at 19 m/s); the reported speed and yaw then say the car drove along its
+lane while its body landed on another car.
 """
 
 from __future__ import annotations
@@ -94,13 +95,16 @@ def contact_fault(
     motion_a_mps: tuple[float, float] | None = None,
     motion_b_mps: tuple[float, float] | None = None,
     step_s: float = 0.1,
+    turn_a_rad: float = 0.0,
+    turn_b_rad: float = 0.0,
 ) -> Fault:
     """Attribute the contact of two overlapping rectangles ``(cx, cy, yaw, length, width)``
     whose vehicles move along their yaw at the given speeds, each on a lane running in
     direction ``lane_yaw`` where it is (None: along the vehicle, no sideways motion).
     ``motion_*_mps``, when given, is the vehicle's measured velocity (x, y) over the
     step the contact began in (its footprint centre's displacement / `step_s`), used
-    instead of speed along yaw."""
+    instead of speed along yaw, and ``turn_*_rad`` how far its footprint turned over
+    that step."""
     rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
     corners = rectangle_corners(rects)
     overlap = Polygon(corners[0]).intersection(Polygon(corners[1]))
@@ -122,6 +126,7 @@ def contact_fault(
         )
     ]
     speeds = [math.hypot(*v) for v in velocity]
+    turns = (float(turn_a_rad), float(turn_b_rad))
 
     def sideways(i: int) -> float:
         """Speed of vehicle i across its lane, towards the side where the other is."""
@@ -150,7 +155,14 @@ def contact_fault(
         ahead = (cx - rects[i, CX]) * c + (cy - rects[i, CY]) * s
         return ahead >= FRONT_SHARE * 0.5 * rects[i, LENGTH] and closing(i) > TIE_MPS
 
-    excess = [speeds[i] - abs(reported[i]) for i in (0, 1)]
+    # the centre's speed, or the body's at the contact when it turned faster there
+    moved = [
+        max(speeds[i], _point_moved_m(rects[i], velocity[i], turns[i], step_s, cx, cy) / step_s)
+        if (motion_a_mps, motion_b_mps)[i] is not None
+        else speeds[i]
+        for i in (0, 1)
+    ]
+    excess = [moved[i] - abs(reported[i]) for i in (0, 1)]
     placed = [e > PLACED_MPS and e * step_s > PLACED_M for e in excess]
     if placed[0] != placed[1]:
         return Fault(0 if placed[0] else 1, PLACED, cx, cy)
@@ -167,3 +179,21 @@ def contact_fault(
     if moving[0] != moving[1]:
         return Fault(0 if moving[0] else 1, SWEPT, cx, cy)
     return Fault(None, "undetermined", cx, cy)
+
+
+def _point_moved_m(
+    rect: np.ndarray,
+    velocity: tuple[float, float],
+    turn_rad: float,
+    step_s: float,
+    x_m: float,
+    y_m: float,
+) -> float:
+    """How far the point of the body now at (x, y) moved over the step [m]: the centre's
+    displacement plus the point's turn about the centre (a rigid body)."""
+    rx, ry = x_m - rect[CX], y_m - rect[CY]
+    c, s = math.cos(turn_rad), math.sin(turn_rad)
+    before_x, before_y = c * rx + s * ry, -s * rx + c * ry  # the offset turned back
+    dx = velocity[0] * step_s + rx - before_x
+    dy = velocity[1] * step_s + ry - before_y
+    return math.hypot(dx, dy)

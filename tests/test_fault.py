@@ -48,8 +48,11 @@ def test_cut_in_is_the_lane_changer_even_when_struck_from_behind():
 
 
 def test_side_swipe_is_the_drifting_car():
+    # beside, drifting right into a at 0.7 m/s: its front-right corner 5 cm into a at
+    # the first step of the contact, less than the 7 cm it drifted in the step
     a = car(0.0, 0.0)
-    b = car(0.5, 1.7, -math.radians(4.0))  # beside, drifting right into a
+    b = car(0.5, 1.905, -math.radians(4.0))
+    assert 0.0 < penetration_depths([a], [b])[0] < 0.07
     assert contact_fault(a, b, 10.0, 10.0, 0.0, 0.0).at_fault == 1
 
 
@@ -182,6 +185,24 @@ def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
     for motion_b, step_s in (((13.0, 0.0), 1.0), ((18.5, 0.0), 0.05)):
         fault = contact_fault(slow, placed, 1.2, 8.5, None, None, (1.2, 0.0), motion_b, step_s)
         assert (fault.at_fault, fault.reason) == (0, FRONT)
+
+
+def test_a_car_turned_onto_another_faster_than_it_drives_is_at_fault():
+    """Found on a race circuit (seed 42, 316.2 s): SUMO turned a car in a hairpin by 34
+    degrees in a 0.1 s step at 19.3 m/s, its rear sweeping about 3 m sideways onto the
+    front of a platoon car at 2.2 m/s; the footprint's centre moved at 25 m/s, the body
+    at the contact at 38 m/s."""
+    slow = (4.670, 3.095, 0.889, 4.5, 1.8)
+    swung = (3.281, 5.884, 1.851, 5.0, 1.8)
+    motions = dict(motion_a_mps=(1.362, 1.694), motion_b_mps=(16.18, 19.06))
+    # its centre alone moved under 1 m farther than its speed covers: not placed
+    fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028)
+    assert (fault.at_fault, fault.reason) == (0, CLOSING)
+    fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028, turn_b_rad=0.59)
+    assert (fault.at_fault, fault.reason) == (1, PLACED)
+    # a turn a car can make (0.5 rad/s) does not place it
+    fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028, turn_b_rad=0.05)
+    assert fault.reason != PLACED
 
 
 motions = st.tuples(st.floats(-20.0, 20.0), st.floats(-20.0, 20.0))

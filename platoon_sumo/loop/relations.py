@@ -16,6 +16,7 @@ from platoon_sumo.geometry import (
     centre_to_front_bumper,
     overlapping_pairs,
     rectangles_crossing_segments,
+    wrap_angle,
 )
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.ports import FloatArray
@@ -116,9 +117,11 @@ class SafetyCheck:
                 a, b = b, a  # the platoon vehicle first
             i, j = world.index[a], world.index[b]
             lanes = [_lane_yaw(network, world.lane_ids[k], rects[k]) for k in (i, j)]
+            dt_s = _interval_s(ctx)
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
-                *_motions(ctx, i, j),
+                _motion(ctx, i, dt_s), _motion(ctx, j, dt_s), dt_s or ctx.dt_s,
+                _turn_rad(ctx, i), _turn_rad(ctx, j),
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
@@ -142,22 +145,35 @@ def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:
     return None if centre is None else centre[0]
 
 
-def _motions(
-    ctx: StepContext, i: int, j: int
-) -> tuple[tuple[float, float] | None, tuple[float, float] | None, float]:
-    """How rows `i` and `j` of the world's footprints moved over the step [m/s] (x, y),
-    from the world the step began with (None for a vehicle not in it: just departed, or
-    outside the platoons' reach), and the interval between the two worlds [s]."""
+def _interval_s(ctx: StepContext) -> float | None:
+    """The time between the world the step began with and the new one [s] (None: no
+    earlier world to compare with)."""
+    before = ctx.sensed_world
+    if before is None or ctx.sensed_footprints is None or ctx.world.time_s <= before.time_s:
+        return None
+    return ctx.world.time_s - before.time_s
+
+
+def _before(ctx: StepContext, k: int) -> FloatArray | None:
+    """Row `k`'s footprint in the world the step began with (None for a vehicle not in
+    it: just departed, or outside the platoons' reach)."""
     before, rects_before = ctx.sensed_world, ctx.sensed_footprints
-    if before is None or rects_before is None or ctx.world.time_s <= before.time_s:
-        return None, None, ctx.dt_s
-    dt_s = ctx.world.time_s - before.time_s
+    if before is None or rects_before is None:
+        return None
+    was = before.index.get(ctx.world.ids[k])
+    return None if was is None else rects_before[was]
 
-    def motion(k: int) -> tuple[float, float] | None:
-        was = before.index.get(ctx.world.ids[k])
-        if was is None:
-            return None
-        now, then = ctx.footprints[k], rects_before[was]
-        return (float(now[0] - then[0]) / dt_s, float(now[1] - then[1]) / dt_s)
 
-    return motion(i), motion(j), dt_s
+def _motion(ctx: StepContext, k: int, dt_s: float | None) -> tuple[float, float] | None:
+    """How row `k`'s footprint centre moved over the step [m/s] (x, y)."""
+    was = _before(ctx, k)
+    if was is None or dt_s is None:
+        return None
+    now = ctx.footprints[k]
+    return (float(now[CX] - was[CX]) / dt_s, float(now[CY] - was[CY]) / dt_s)
+
+
+def _turn_rad(ctx: StepContext, k: int) -> float:
+    """How far row `k`'s footprint turned over the step [rad] (0 when not known)."""
+    was = _before(ctx, k)
+    return 0.0 if was is None else float(wrap_angle(ctx.footprints[k][YAW] - was[YAW]))
