@@ -8,7 +8,9 @@ The rules, in order (docs/metrics.md):
 0. **Placed onto the other.** A vehicle whose footprint's centre, or its body at the
    contact, moved over the step farther than its reported speed covers, by more than
    `PLACED_M` and faster by more than `PLACED_MPS` (SUMO moved or turned it there; it
-   did not drive there), while the other's did not, is at fault.
+   did not drive there), while the other's did not, is at fault. So is, otherwise, a
+   vehicle SUMO placed so (by its centre's motion) less than `PLACED_REACTION_S`
+   before the contact, while the other was not: the other could not react to it.
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.
@@ -40,7 +42,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import Polygon
 
 from platoon_sumo.geometry import CX, CY, LENGTH, WIDTH, YAW, rectangle_corners
@@ -67,8 +69,13 @@ FRONT_SHARE = 0.5
 #: junction lane landed 6 m from its last position at 8.5 m/s (an OpenStreetMap race
 #: circuit).
 PLACED_M, PLACED_MPS = 1.0, 5.0
+#: A vehicle placed this recently before a contact caused it [s]: the other had less
+#: than a driver's reaction time (a car SUMO placed 0.2 m beside a slow platoon car's
+#: front on a race circuit touched it in the next step).
+PLACED_REACTION_S = 1.0
 
 PLACED = "placed onto the other (moved farther than its speed)"
+PLACED_RECENTLY = "placed beside the other less than a reaction time before"
 SIDEWAYS = "moved sideways into the other's path"
 FRONT = "front into the other's side or rear"
 CLOSING = "closing faster"
@@ -97,14 +104,17 @@ def contact_fault(
     step_s: float = 0.1,
     turn_a_rad: float = 0.0,
     turn_b_rad: float = 0.0,
+    placed_recently_a: bool = False,
+    placed_recently_b: bool = False,
 ) -> Fault:
     """Attribute the contact of two overlapping rectangles ``(cx, cy, yaw, length, width)``
     whose vehicles move along their yaw at the given speeds, each on a lane running in
     direction ``lane_yaw`` where it is (None: along the vehicle, no sideways motion).
     ``motion_*_mps``, when given, is the vehicle's measured velocity (x, y) over the
     step the contact began in (its footprint centre's displacement / `step_s`), used
-    instead of speed along yaw, and ``turn_*_rad`` how far its footprint turned over
-    that step."""
+    instead of speed along yaw, ``turn_*_rad`` how far its footprint turned over that
+    step, and ``placed_recently_*`` whether SUMO placed it (``placed``) within
+    `PLACED_REACTION_S` before."""
     rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
     corners = rectangle_corners(rects)
     overlap = Polygon(corners[0]).intersection(Polygon(corners[1]))
@@ -163,9 +173,11 @@ def contact_fault(
         for i in (0, 1)
     ]
     excess = [moved[i] - abs(reported[i]) for i in (0, 1)]
-    placed = [e > PLACED_MPS and e * step_s > PLACED_M for e in excess]
+    placed = [bool(was_placed(e * step_s, 0.0, step_s)) for e in excess]
     if placed[0] != placed[1]:
         return Fault(0 if placed[0] else 1, PLACED, cx, cy)
+    if placed_recently_a != placed_recently_b:
+        return Fault(0 if placed_recently_a else 1, PLACED_RECENTLY, cx, cy)
     into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
     if into[0] != into[1]:
         return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)
@@ -179,6 +191,14 @@ def contact_fault(
     if moving[0] != moving[1]:
         return Fault(0 if moving[0] else 1, SWEPT, cx, cy)
     return Fault(None, "undetermined", cx, cy)
+
+
+def was_placed(moved_m: ArrayLike, speed_mps: ArrayLike, step_s: float) -> NDArray[np.bool_]:
+    """Did footprints that moved `moved_m` over a step of `step_s` while reporting
+    `speed_mps` move farther than that speed covers, by more than `PLACED_M` and faster
+    by more than `PLACED_MPS`: placed by SUMO, not driven?"""
+    excess_m = np.asarray(moved_m, dtype=np.float64) - np.abs(speed_mps) * step_s
+    return np.asarray((excess_m > PLACED_MPS * step_s) & (excess_m > PLACED_M))
 
 
 def _point_moved_m(

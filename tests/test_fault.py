@@ -11,7 +11,15 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from platoon_sumo.fault import CLOSING, FRONT, PLACED, SIDEWAYS, SWEPT, contact_fault
+from platoon_sumo.fault import (
+    CLOSING,
+    FRONT,
+    PLACED,
+    PLACED_RECENTLY,
+    SIDEWAYS,
+    SWEPT,
+    contact_fault,
+)
 from platoon_sumo.geometry import penetration_depths
 from platoon_sumo.loop.relations import _lane_yaw
 from platoon_sumo.sumo.network import Network
@@ -203,6 +211,21 @@ def test_a_car_turned_onto_another_faster_than_it_drives_is_at_fault():
     # a turn a car can make (0.5 rad/s) does not place it
     fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028, turn_b_rad=0.05)
     assert fault.reason != PLACED
+
+
+def test_a_car_placed_less_than_a_reaction_time_before_the_contact_is_at_fault():
+    """Found on a race circuit (seed 42, 118.6 s): SUMO placed a car 2.6 m in a step at
+    4.1 m/s to 0.2 m beside a platoon car's front, which touched it a step later."""
+    slow, placed = car(0.0, 0.0), car(4.3, 0.3)  # the slow car's front in its rear
+    moving = dict(motion_a_mps=(1.3, 0.0), motion_b_mps=(3.6, 0.0))
+    assert contact_fault(slow, placed, 1.3, 3.6, **moving).reason == FRONT
+    fault = contact_fault(slow, placed, 1.3, 3.6, **moving, placed_recently_b=True)
+    assert (fault.at_fault, fault.reason) == (1, PLACED_RECENTLY)
+    swapped = contact_fault(placed, slow, 3.6, 1.3, placed_recently_a=True)
+    assert (swapped.at_fault, swapped.reason) == (0, PLACED_RECENTLY)
+    # both placed: the other rules decide
+    both = contact_fault(slow, placed, 1.3, 3.6, placed_recently_a=True, placed_recently_b=True)
+    assert (both.at_fault, both.reason) == (0, FRONT)
 
 
 motions = st.tuples(st.floats(-20.0, 20.0), st.floats(-20.0, 20.0))

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from platoon_sumo.events import WALL, EventKind, Onset
-from platoon_sumo.fault import contact_fault
+from platoon_sumo.fault import PLACED_REACTION_S, contact_fault, was_placed
 from platoon_sumo.geometry import (
     CX,
     CY,
@@ -91,9 +91,12 @@ class SafetyCheck:
 
     def __init__(self) -> None:
         self._contacts: Onset[tuple[str, str]] = Onset()
+        self._placed_at_s: dict[str, float] = {}
+        """When SUMO last placed each vehicle near the platoons (fault rule 0)."""
 
     def __call__(self, ctx: StepContext) -> None:
         world, rects = ctx.world, ctx.footprints
+        self._note_placed(ctx)
         subjects = np.array([world.index[m.id] for m in ctx.fleet if m.id in world.index])
         if not len(subjects):
             self._contacts.update(())
@@ -121,12 +124,38 @@ class SafetyCheck:
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
                 _motion(ctx, i, dt_s), _motion(ctx, j, dt_s), dt_s or ctx.dt_s,
-                _turn_rad(ctx, i), _turn_rad(ctx, j),
+                _turn_rad(ctx, i), _turn_rad(ctx, j), self._placed_recently(a, world.time_s),
+                self._placed_recently(b, world.time_s),
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
                 at_fault=(a, b)[fault.at_fault] if fault.at_fault is not None else "",
             )  # fmt: skip
+
+    def _note_placed(self, ctx: StepContext) -> None:
+        """Remember which vehicles in both worlds SUMO placed over this step; forget
+        placements older than a reaction time."""
+        now_s, dt_s = ctx.world.time_s, _interval_s(ctx)
+        for vid, at_s in list(self._placed_at_s.items()):
+            if now_s - at_s > PLACED_REACTION_S:
+                del self._placed_at_s[vid]
+        before, rects_before = ctx.sensed_world, ctx.sensed_footprints
+        if dt_s is None or before is None or rects_before is None:
+            return
+        world = ctx.world
+        rows = [(k, before.index[vid]) for k, vid in enumerate(world.ids) if vid in before.index]
+        if not rows:
+            return
+        now_rows, was_rows = np.array(rows).T
+        moved = ctx.footprints[now_rows, :2] - rects_before[was_rows, :2]
+        placed = was_placed(np.hypot(moved[:, 0], moved[:, 1]), world.speed_mps[now_rows], dt_s)
+        for k in now_rows[placed]:
+            self._placed_at_s[world.ids[k]] = now_s
+
+    def _placed_recently(self, vehicle_id: str, now_s: float) -> bool:
+        """Placed by SUMO less than a reaction time before now (rule 0 of the fault)."""
+        at_s = self._placed_at_s.get(vehicle_id)
+        return at_s is not None and now_s - at_s <= PLACED_REACTION_S
 
 
 def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:

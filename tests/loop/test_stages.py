@@ -15,7 +15,7 @@ from platoon_sumo.control import Command
 from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import PluginError
 from platoon_sumo.events import EventKind
-from platoon_sumo.fault import PLACED
+from platoon_sumo.fault import FRONT, PLACED, PLACED_RECENTLY
 from platoon_sumo.loop.actuate import Actuate, ReadBack
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepContext, StepHook
 from platoon_sumo.loop.decision import Decide
@@ -347,6 +347,39 @@ def test_safety_check_blames_the_car_whose_footprint_moved_into_the_other(write_
     check(ctx)
     hits = [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
     assert hits == [("p.0", "h", "h", PLACED)]
+
+
+@pytest.mark.parametrize(
+    ("steps_before", "at_fault", "reason"), [(1, "h", PLACED_RECENTLY), (12, "p.0", FRONT)]
+)
+def test_safety_check_blames_a_car_placed_just_ahead_of_a_member(
+    write_scenario, steps_before, at_fault, reason
+):
+    """A car SUMO places just ahead of a member, without touching it, caused the
+    contact when the member's front reaches it within a reaction time (1 s: here 0.1 s
+    later), not when it reaches it 1.2 s later (the member's front struck it)."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)  # p.0's front bumper at x 100
+    backend.vehicles["p.0"].speed_mps = 3.0  # 0.3 m a step
+    backend.add_human("h", 110.0, 0.0)  # standing, within the world's reach
+    check = SafetyCheck()
+    hits = []
+    for step in range(steps_before + 2):
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        ctx.events = []
+        check(ctx)
+        hits += [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+        if step == steps_before + 1:  # p.0's front reaches h's rear
+            break
+        Sense()(ctx)  # the world the step begins with
+        backend.step()
+        if step == 0:  # SUMO places h, its rear 0.1 m beyond p.0's front steps_before on
+            front = backend.vehicles["p.0"].x_m + 0.3 * steps_before - 0.2
+            backend.vehicles["h"].x_m = front + 4.5
+    assert hits == [("p.0", "h", at_fault, reason)]
 
 
 def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(write_scenario):
