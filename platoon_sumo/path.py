@@ -60,8 +60,6 @@ class RoutePath:
     lane_ids: tuple[str, ...]
     lane_width_m: FloatArray
     lane_changes: tuple[LaneChange, ...] = ()
-    straight_junction_lanes: frozenset[str] = frozenset()
-    """Junction lanes of straight-through connections (netconvert's direction "s")."""
 
     def next_lane_change(self, s_m: float) -> LaneChange | None:
         """The lane change under way at arc length `s_m`, or the next one (None: no more)."""
@@ -76,7 +74,6 @@ class RoutePath:
         lane_widths_m: Sequence[float],
         spacing_m: float,
         lane_changes: Sequence[LaneChange] = (),
-        straight_junction_lanes: frozenset[str] = frozenset(),
     ) -> RoutePath:
         """Join per-lane polylines (each (k, 2)) into one path resampled at `spacing_m`."""
         if spacing_m <= 0:
@@ -113,7 +110,6 @@ class RoutePath:
             lane_ids=tuple(lane_ids),
             lane_width_m=np.asarray(lane_widths_m, dtype=np.float64)[lane_of_point],
             lane_changes=tuple(lane_changes),
-            straight_junction_lanes=straight_junction_lanes,
         )
 
     # Derived values are cached on first use (the path never changes; cached_property
@@ -393,28 +389,14 @@ class RoutePath:
             use_hint, hint, window, float(x_m), float(y_m),
         )  # fmt: skip
 
-    def curvature_1pm(self, smoothing_m: float, straight_junctions: bool = True) -> FloatArray:
-        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length.
-
-        `straight_junctions=False` leaves out the bends of the junction lanes of
-        straight-through connections (`straight_junction_lanes`) and their corners with
-        the lanes before and after (0 there): a junction's shape can bend them far
-        sharper than the road (on eclipse-sumo's `highway` network a motorway's lane
-        jogs 4.8 m sideways within 0.3 m), which SUMO's cars take at the lane's speed."""
+    def curvature_1pm(self, smoothing_m: float) -> FloatArray:
+        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length."""
         d = np.diff(self.xy_m, axis=0)
         heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
         seg = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
         kappa = np.zeros(len(self.xy_m))
         if len(heading) > 1:
             kappa[1:-1] = np.abs(np.diff(heading)) / (0.5 * (seg[1:] + seg[:-1]))
-        if not straight_junctions and self.straight_junction_lanes:
-            lanes = self.straight_junction_lanes
-            straight = np.array([id_ in lanes for id_ in self.lane_ids], dtype=bool)
-            at = straight[np.asarray(self.lane_index, dtype=np.intp)]
-            near = at.copy()  # a point's curvature uses its neighbours: theirs count too
-            near[1:] |= at[:-1]
-            near[:-1] |= at[1:]
-            kappa[near] = 0.0
         width = max(1, round(smoothing_m / self.spacing_m))
         kernel = np.ones(width) / width
         return np.asarray(np.convolve(kappa, kernel, mode="same"), dtype=np.float64)

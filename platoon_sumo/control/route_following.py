@@ -78,7 +78,6 @@ class RouteFollowing:
         p = self.params
         self._s_m = 0.0
         self._path: RoutePath | None = None
-        self._on_sumo_lanes = False
         self._curve_speed_mps = np.zeros(0)
         self._curve_nan = False
         self._path_arrays: tuple[np.ndarray, ...] = ()
@@ -91,16 +90,10 @@ class RouteFollowing:
         self._s_m = 0.0
         self._path = None
 
-    def _prepare(self, path: RoutePath, on_sumo_lanes: bool) -> None:
-        """The path's curve speed limits. Where SUMO moves the vehicle along its lanes
-        (``Observation.on_sumo_lanes``), a junction's straight-through lanes add none:
-        a straight movement has no curve, and SUMO's cars take such a lane at its speed
-        limit whatever corners the junction's shape gave its polyline."""
-        if path is not self._path or on_sumo_lanes != self._on_sumo_lanes:
-            self._path, self._on_sumo_lanes = path, on_sumo_lanes
-            kappa = path.curvature_1pm(
-                self.params.curvature_smoothing_m, straight_junctions=not on_sumo_lanes
-            )
+    def _prepare(self, path: RoutePath) -> None:
+        if path is not self._path:
+            self._path = path
+            kappa = path.curvature_1pm(self.params.curvature_smoothing_m)
             curve = np.sqrt(self.params.max_lateral_accel_mps2 / np.maximum(kappa, 1e-9))
             limit = path.speed_limit_mps * self.params.speed_limit_factor
             self._curve_speed_mps = np.minimum(curve, limit)
@@ -124,8 +117,8 @@ class RouteFollowing:
         """``step`` with the vehicle-ahead speed limit given (inf: none; the laser
         follower's fallback steps blind to SUMO's leader)."""
         path = obs.path
-        if path is not self._path or obs.on_sumo_lanes != self._on_sumo_lanes:
-            self._prepare(path, obs.on_sumo_lanes)
+        if path is not self._path:
+            self._prepare(path)
         if obs.limits is not self._limits:
             self._set_limits(obs.limits)
         signal = obs.signal

@@ -32,7 +32,6 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
         limits=m.platoon.limits,
         path=m.path,
         lane_offset_m=0.0 if m.actuator.steers else m.lateral_offset_m,
-        on_sumo_lanes=m.actuator.sumo_drives,
         signal=m.signal,
         link_ahead=m.link_ahead,
         lane_change=m.lane_change,

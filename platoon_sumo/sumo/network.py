@@ -41,8 +41,6 @@ class _Link:
     to_lane: int
     via_lane_ids: tuple[str, ...]
     turnaround: bool = False
-    straight: bool = False
-    """netconvert's direction "s": straight through the junction."""
 
 
 #: Parts of the ids netconvert gives edges it invents when guessing ramps.
@@ -255,7 +253,6 @@ class Network:
                     conn.getToLane().getIndex(),
                     tuple(vias),
                     conn.getDirection() == "t",
-                    conn.getDirection() == "s",
                 )
             )
         return tuple(links)
@@ -281,7 +278,6 @@ class Network:
         widths: list[float] = []
         entry_lane = first_lane if first_lane is not None else None
         changes: list[LaneChange] = []
-        straight: set[str] = set()
         offset_m = 0.0
         for i, edge_id in enumerate(edges):
             edge = self._normal_edges[edge_id]
@@ -318,12 +314,8 @@ class Network:
                     lane_ids.append(via_id)
                     speeds.append(via.getSpeed())
                     widths.append(via.getWidth())
-                    if links[i].straight:
-                        straight.add(via_id)
                 entry_lane = links[i].to_lane
-        return RoutePath.from_pieces(
-            pieces, lane_ids, speeds, widths, spacing_m, changes, frozenset(straight)
-        )
+        return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m, changes)
 
     def _choose_links(
         self, edges: Sequence[str], first_lane: int | None, vclass: str
