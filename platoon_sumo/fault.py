@@ -9,8 +9,10 @@ The rules, in order (docs/metrics.md):
    contact, moved over the step farther than its reported speed covers, by more than
    `PLACED_M` and faster by more than `PLACED_MPS` (SUMO moved or turned it there; it
    did not drive there), while the other's did not, is at fault. So is, otherwise, a
-   vehicle SUMO placed so (by its centre's motion) less than `PLACED_REACTION_S`
-   before the contact, while the other was not: the other could not react to it.
+   vehicle SUMO placed so (by its centre's motion) at most `PLACED_REACTION_S` before
+   the contact within the other's reach (what the other covers in that time at its
+   speed then, plus half the two lengths), while the other was not: the other could
+   not react to it (a cut-in).
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.
@@ -69,13 +71,16 @@ FRONT_SHARE = 0.5
 #: junction lane landed 6 m from its last position at 8.5 m/s (an OpenStreetMap race
 #: circuit).
 PLACED_M, PLACED_MPS = 1.0, 5.0
-#: A vehicle placed this recently before a contact caused it [s]: the other had less
-#: than a driver's reaction time (a car SUMO placed 0.2 m beside a slow platoon car's
-#: front on a race circuit touched it in the next step).
+#: A vehicle placed within the other's reach at most this long before their contact
+#: caused it [s]: the other had less than a driver's reaction time (a car SUMO placed
+#: 0.2 m beside a slow platoon car's front on a race circuit touched it in the next
+#: step). Without SUMO's sublane model a lane change is such a placement (3.2 m
+#: sideways in one step): a lane change that closes on a car within its reach is a
+#: cut-in.
 PLACED_REACTION_S = 1.0
 
 PLACED = "placed onto the other (moved farther than its speed)"
-PLACED_RECENTLY = "placed beside the other less than a reaction time before"
+PLACED_RECENTLY = "placed within the other's reach less than a reaction time before"
 SIDEWAYS = "moved sideways into the other's path"
 FRONT = "front into the other's side or rear"
 CLOSING = "closing faster"
@@ -113,8 +118,8 @@ def contact_fault(
     ``motion_*_mps``, when given, is the vehicle's measured velocity (x, y) over the
     step the contact began in (its footprint centre's displacement / `step_s`), used
     instead of speed along yaw, ``turn_*_rad`` how far its footprint turned over that
-    step, and ``placed_recently_*`` whether SUMO placed it (``placed``) within
-    `PLACED_REACTION_S` before."""
+    step, and ``placed_recently_*`` whether SUMO placed it (``was_placed``) within the
+    other's reach at most `PLACED_REACTION_S` before."""
     rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
     corners = rectangle_corners(rects)
     overlap = Polygon(corners[0]).intersection(Polygon(corners[1]))
@@ -176,8 +181,9 @@ def contact_fault(
     placed = [bool(was_placed(e * step_s, 0.0, step_s)) for e in excess]
     if placed[0] != placed[1]:
         return Fault(0 if placed[0] else 1, PLACED, cx, cy)
-    if placed_recently_a != placed_recently_b:
-        return Fault(0 if placed_recently_a else 1, PLACED_RECENTLY, cx, cy)
+    recently = [placed_recently_a or placed[0], placed_recently_b or placed[1]]
+    if recently[0] != recently[1]:  # (placed in this step counts as recently)
+        return Fault(0 if recently[0] else 1, PLACED_RECENTLY, cx, cy)
     into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
     if into[0] != into[1]:
         return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)

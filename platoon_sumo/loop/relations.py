@@ -91,8 +91,9 @@ class SafetyCheck:
 
     def __init__(self) -> None:
         self._contacts: Onset[tuple[str, str]] = Onset()
-        self._placed_at_s: dict[str, float] = {}
-        """When SUMO last placed each vehicle near the platoons (fault rule 0)."""
+        self._placed: dict[str, tuple[float, frozenset[str]]] = {}
+        """Vehicles SUMO placed near the platoons (fault rule 0): when, and which
+        vehicles they landed within reach of."""
 
     def __call__(self, ctx: StepContext) -> None:
         world, rects = ctx.world, ctx.footprints
@@ -124,8 +125,8 @@ class SafetyCheck:
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
                 _motion(ctx, i, dt_s), _motion(ctx, j, dt_s), dt_s or ctx.dt_s,
-                _turn_rad(ctx, i), _turn_rad(ctx, j), self._placed_recently(a, world.time_s),
-                self._placed_recently(b, world.time_s),
+                _turn_rad(ctx, i), _turn_rad(ctx, j), self._placed_near(a, b, world.time_s),
+                self._placed_near(b, a, world.time_s),
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
@@ -133,29 +134,39 @@ class SafetyCheck:
             )  # fmt: skip
 
     def _note_placed(self, ctx: StepContext) -> None:
-        """Remember which vehicles in both worlds SUMO placed over this step; forget
-        placements older than a reaction time."""
+        """Remember which vehicles in both worlds SUMO placed over this step, and within
+        whose reach they landed (what that vehicle covers in `PLACED_REACTION_S` at its
+        speed, plus half the two lengths, centre to centre); forget older placements."""
         now_s, dt_s = ctx.world.time_s, _interval_s(ctx)
-        for vid, at_s in list(self._placed_at_s.items()):
-            if now_s - at_s > PLACED_REACTION_S:
-                del self._placed_at_s[vid]
+        for vid, (at_s, _) in list(self._placed.items()):
+            if not _within_reaction(at_s, now_s):
+                del self._placed[vid]
         before, rects_before = ctx.sensed_world, ctx.sensed_footprints
         if dt_s is None or before is None or rects_before is None:
             return
-        world = ctx.world
+        world, rects = ctx.world, ctx.footprints
         rows = [(k, before.index[vid]) for k, vid in enumerate(world.ids) if vid in before.index]
         if not rows:
             return
         now_rows, was_rows = np.array(rows).T
-        moved = ctx.footprints[now_rows, :2] - rects_before[was_rows, :2]
+        moved = rects[now_rows, :2] - rects_before[was_rows, :2]
         placed = was_placed(np.hypot(moved[:, 0], moved[:, 1]), world.speed_mps[now_rows], dt_s)
+        reach = np.abs(world.speed_mps) * PLACED_REACTION_S + 0.5 * rects[:, LENGTH]
         for k in now_rows[placed]:
-            self._placed_at_s[world.ids[k]] = now_s
+            apart = np.hypot(rects[:, CX] - rects[k, CX], rects[:, CY] - rects[k, CY])
+            near = np.flatnonzero(apart <= reach + 0.5 * rects[k, LENGTH])
+            self._placed[world.ids[k]] = (now_s, frozenset(world.ids[n] for n in near if n != k))
 
-    def _placed_recently(self, vehicle_id: str, now_s: float) -> bool:
-        """Placed by SUMO less than a reaction time before now (rule 0 of the fault)."""
-        at_s = self._placed_at_s.get(vehicle_id)
-        return at_s is not None and now_s - at_s <= PLACED_REACTION_S
+    def _placed_near(self, vehicle_id: str, other_id: str, now_s: float) -> bool:
+        """Did SUMO place `vehicle_id` within `other_id`'s reach at most a reaction time
+        before now (rule 0 of the fault)?"""
+        placed = self._placed.get(vehicle_id)
+        return placed is not None and _within_reaction(placed[0], now_s) and other_id in placed[1]
+
+
+def _within_reaction(at_s: float, now_s: float) -> bool:
+    """Is `at_s` at most `PLACED_REACTION_S` before `now_s` (SUMO's times, to rounding)?"""
+    return now_s - at_s <= PLACED_REACTION_S + 1e-9
 
 
 def _lane_yaw(network: Network, lane_id: str, rect: FloatArray) -> float | None:

@@ -356,8 +356,9 @@ def test_safety_check_blames_a_car_placed_just_ahead_of_a_member(
     write_scenario, steps_before, at_fault, reason
 ):
     """A car SUMO places just ahead of a member, without touching it, caused the
-    contact when the member's front reaches it within a reaction time (1 s: here 0.1 s
-    later), not when it reaches it 1.2 s later (the member's front struck it)."""
+    contact when it landed within the member's reach (what the member covers in 1 s,
+    plus half the two lengths) and the member's front reaches it 0.1 s later; not when
+    it landed farther and the member reaches it 1.2 s later (its front struck it)."""
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1), backend)
     departed(ctx, backend)  # p.0's front bumper at x 100
