@@ -177,8 +177,7 @@ def contact_fault(
         else speeds[i]
         for i in (0, 1)
     ]
-    excess = [moved[i] - abs(reported[i]) for i in (0, 1)]
-    placed = [bool(was_placed(e * step_s, 0.0, step_s)) for e in excess]
+    placed = [bool(was_placed(moved[i] * step_s, reported[i], step_s)) for i in (0, 1)]
     if placed[0] != placed[1]:
         return Fault(0 if placed[0] else 1, PLACED, cx, cy)
     recently = [placed_recently_a or placed[0], placed_recently_b or placed[1]]

@@ -97,7 +97,8 @@ class SafetyCheck:
 
     def __call__(self, ctx: StepContext) -> None:
         world, rects = ctx.world, ctx.footprints
-        self._note_placed(ctx)
+        dt_s = _interval_s(ctx)
+        self._note_placed(ctx, dt_s)
         subjects = np.array([world.index[m.id] for m in ctx.fleet if m.id in world.index])
         if not len(subjects):
             self._contacts.update(())
@@ -121,7 +122,6 @@ class SafetyCheck:
                 a, b = b, a  # the platoon vehicle first
             i, j = world.index[a], world.index[b]
             lanes = [_lane_yaw(network, world.lane_ids[k], rects[k]) for k in (i, j)]
-            dt_s = _interval_s(ctx)
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
                 _motion(ctx, i, dt_s), _motion(ctx, j, dt_s), dt_s or ctx.dt_s,
@@ -133,11 +133,11 @@ class SafetyCheck:
                 at_fault=(a, b)[fault.at_fault] if fault.at_fault is not None else "",
             )  # fmt: skip
 
-    def _note_placed(self, ctx: StepContext) -> None:
+    def _note_placed(self, ctx: StepContext, dt_s: float | None) -> None:
         """Remember which vehicles in both worlds SUMO placed over this step, and within
         whose reach they landed (what that vehicle covers in `PLACED_REACTION_S` at its
         speed, plus half the two lengths, centre to centre); forget older placements."""
-        now_s, dt_s = ctx.world.time_s, _interval_s(ctx)
+        now_s = ctx.world.time_s
         for vid, (at_s, _) in list(self._placed.items()):
             if not _within_reaction(at_s, now_s):
                 del self._placed[vid]
