@@ -113,7 +113,7 @@ class LiveView(StepHook):
     def _paint(self, v: VehicleRecord) -> None:
         colour = self._colours.get(v.platoon_id, PLATOON_COLOURS[0])
         self._traci.vehicle.setColor(v.id, (*colour, 255))
-        if v.index == 0:  # the leader: a ring of its platoon's colour that follows it
+        if v.member_index == 0:  # the leader: a ring of its platoon's colour that follows it
             self._traci.vehicle.highlight(v.id, (*colour, 255), 0.75 * v.length_m)
         self._painted.add(v.id)
 

@@ -192,7 +192,7 @@ class TrajectoryRecorder(StepHook):
             "time_s": [time_s] * len(vs),
             "vehicle_id": [v.id for v in vs],
             "platoon_id": [v.platoon_id for v in vs],
-            "member_index": [v.index for v in vs],
+            "member_index": [v.member_index for v in vs],
             "role": [v.role for v in vs],
             "x_m": [v.front_x_m for v in vs],
             "y_m": [v.front_y_m for v in vs],
@@ -321,7 +321,7 @@ class ScanSnapshot(StepHook):
         if self.vehicle_id is not None:
             candidates = [v for v in candidates if v.id == self.vehicle_id]
         else:
-            candidates.sort(key=lambda v: (v.index != 1, v.index, v.id))
+            candidates.sort(key=lambda v: (v.member_index != 1, v.member_index, v.id))
         if not candidates:
             return
         v = candidates[0]

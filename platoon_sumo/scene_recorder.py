@@ -87,7 +87,7 @@ class SceneRecorder(StepHook):
             member = ours.get(vid)
             self._rows.append((
                 time_s, vid, member.platoon_id if member else None,
-                member.index if member else None, round(float(world.front_x_m[i]), 3),
+                member.member_index if member else None, round(float(world.front_x_m[i]), 3),
                 round(float(world.front_y_m[i]), 3), round(float(world.yaw_rad[i]), 4),
                 float(world.length_m[i]), float(world.width_m[i]),
                 round(float(world.speed_mps[i]), 3),
@@ -100,7 +100,7 @@ class SceneRecorder(StepHook):
             if k is None:
                 k = self._lasers[v.id] = len(self._meta)
                 self._meta.append({
-                    "vehicle_id": v.id, "platoon_id": v.platoon_id, "member_index": v.index,
+                    "vehicle_id": v.id, "platoon_id": v.platoon_id, "member_index": v.member_index,
                     "angle_min": scan.angle_min, "angle_increment": scan.angle_increment,
                     "range_min": scan.range_min, "range_max": scan.range_max,
                 })  # fmt: skip

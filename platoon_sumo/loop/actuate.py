@@ -7,6 +7,7 @@ read back."""
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from platoon_sumo.actuation import ActuationBatch, Surroundings
 from platoon_sumo.errors import PlatoonSumoError, PluginError
@@ -24,6 +25,8 @@ SUMO_CAP_TOLERANCE_MPS = 0.01
 #: SUMO drove, so never a SUMO cap in `ReadBack`).
 SUMO_DECIDES = -1.0
 
+FloatArray = NDArray[np.float64]
+
 
 def _yaw_rate(m: Member, dt_s: float) -> float:
     cmd = m.executed
@@ -34,65 +37,82 @@ def _yaw_rate(m: Member, dt_s: float) -> float:
 
 
 class Actuate:
+    """One actuator call per group of platoons that share the actuation mode, vehicle,
+    limits and model (usually one call for the whole fleet); the group's first member's
+    actuator instance is called."""
+
     def __call__(self, ctx: StepContext) -> None:
-        fleet, dt_s, world = ctx.fleet, ctx.dt_s, ctx.world
+        fleet, world = ctx.fleet, ctx.world
         footprints = ctx.footprints if len(ctx.footprints) == len(world) else None
-        for group in fleet.by_platoon().values():
-            platoon, actuator = group[0].platoon, group[0].actuator
-            rows = fleet.rows(group)
-            kin = fleet.kin[rows]
-            speed_cmd = np.array([m.executed.speed_mps for m in group])
-            powertrain = platoon.config.vehicle.powertrain()
-            if not powertrain.is_ideal:
-                speed_cmd = powertrain_speed(
-                    kin[:, SPEED], kin[:, ACCEL], speed_cmd, powertrain, platoon.limits, dt_s
-                )
-            # SUMO's car-following model decides these members' speed (`sumo_driver`)
-            by_sumo = np.array([m.plan.sumo_car_following is not None for m in group])
-            speed_cmd[by_sumo] = SUMO_DECIDES
-            for m, sent in zip(group, speed_cmd.tolist(), strict=True):
-                m.speed_sent_mps = sent
-            batch = ActuationBatch(
-                vehicle_ids=tuple(m.id for m in group),
-                state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
-                speed_cmd_mps=speed_cmd,
-                yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
-                lane_change=np.array([m.executed.lane_change for m in group], dtype=np.int64),
-                keep_lane=np.array([m.executed.keep_lane for m in group], dtype=bool),
-                sidestep_m=np.array([m.sidestep_m for m in group]) if actuator.steers else None,
-                surroundings=None
-                if footprints is None or not actuator.steers
-                else Surroundings(
-                    footprints,
-                    world.speed_mps,
-                    np.array([world.index.get(m.id, -1) for m in group], dtype=np.int64),
-                ),
-                front_offset_m=platoon.config.vehicle.front_offset_m,
-                length_m=platoon.config.vehicle.length_m,
-                limits=platoon.limits,
-                model=platoon.model(),
-                dt_s=dt_s,
+        groups: dict[tuple[object, ...], list[Member]] = {}
+        for m in fleet:
+            p = m.platoon
+            key = (type(m.actuator), p.config.vehicle, p.limits, p.model)
+            groups.setdefault(key, []).append(m)
+        for group in groups.values():
+            self._apply(ctx, group, footprints)
+
+    @staticmethod
+    def _apply(ctx: StepContext, group: list[Member], footprints: FloatArray | None) -> None:
+        fleet, dt_s, world = ctx.fleet, ctx.dt_s, ctx.world
+        platoon, actuator = group[0].platoon, group[0].actuator
+        vehicle = platoon.config.vehicle
+        rows = fleet.rows(group)
+        kin = fleet.kin[rows]
+        executed = [m.executed for m in group]
+        speed_cmd = np.array([c.speed_mps for c in executed])
+        powertrain = vehicle.powertrain()
+        if not powertrain.is_ideal:
+            speed_cmd = powertrain_speed(
+                kin[:, SPEED], kin[:, ACCEL], speed_cmd, powertrain, platoon.limits, dt_s
             )
-            try:
-                result = actuator.apply(batch, ctx.backend)
-            except PlatoonSumoError:
-                raise
-            except Exception as exc:
-                cls = type(actuator)
-                raise PluginError(
-                    f"actuator {cls.__module__}.{cls.__qualname__} of platoon "
-                    f"'{platoon.config.id}' (vehicles {', '.join(batch.vehicle_ids[:3])}) "
-                    f"failed at t={ctx.world.time_s:.2f} s: {type(exc).__name__}: {exc}"
-                ) from exc
-            if result.state is not None:
-                new = result.state
-                fleet.kin[rows, ACCEL] = (new.speed_mps - kin[:, SPEED]) / dt_s
-                fleet.kin[rows, X], fleet.kin[rows, Y] = new.x_m, new.y_m
-                fleet.kin[rows, YAW], fleet.kin[rows, SPEED] = new.yaw_rad, new.speed_mps
-            for m in group:  # off its route: out of the run, reported
-                reason = result.failed.get(m.id)
-                if reason is not None:
-                    ctx.remove(m, arrived=False, reason=reason)
+        # SUMO's car-following model decides these members' speed (`sumo_driver`)
+        by_sumo = np.array([m.plan.sumo_car_following is not None for m in group])
+        speed_cmd[by_sumo] = SUMO_DECIDES
+        for m, sent in zip(group, speed_cmd.tolist(), strict=True):
+            m.speed_sent_mps = sent
+        batch = ActuationBatch(
+            vehicle_ids=tuple(m.id for m in group),
+            state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
+            speed_cmd_mps=speed_cmd,
+            yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
+            lane_change=np.array([c.lane_change for c in executed], dtype=np.int64),
+            keep_lane=np.array([c.keep_lane for c in executed], dtype=bool),
+            sidestep_m=np.array([m.sidestep_m for m in group]) if actuator.steers else None,
+            surroundings=None
+            if footprints is None or not actuator.steers
+            else Surroundings(
+                footprints,
+                world.speed_mps,
+                np.array([world.index.get(m.id, -1) for m in group], dtype=np.int64),
+            ),
+            front_offset_m=vehicle.front_offset_m,
+            length_m=vehicle.length_m,
+            limits=platoon.limits,
+            model=platoon.model(),
+            dt_s=dt_s,
+        )
+        try:
+            result = actuator.apply(batch, ctx.backend)
+        except PlatoonSumoError:
+            raise
+        except Exception as exc:
+            cls = type(actuator)
+            platoons = ", ".join(dict.fromkeys(f"'{m.platoon_id}'" for m in group))
+            raise PluginError(
+                f"actuator {cls.__module__}.{cls.__qualname__} of platoon {platoons} "
+                f"(vehicles {', '.join(batch.vehicle_ids[:3])}) failed at "
+                f"t={ctx.world.time_s:.2f} s: {type(exc).__name__}: {exc}"
+            ) from exc
+        if result.state is not None:
+            new = result.state
+            fleet.kin[rows, ACCEL] = (new.speed_mps - kin[:, SPEED]) / dt_s
+            fleet.kin[rows, X], fleet.kin[rows, Y] = new.x_m, new.y_m
+            fleet.kin[rows, YAW], fleet.kin[rows, SPEED] = new.yaw_rad, new.speed_mps
+        for m in group:  # off its route: out of the run, reported
+            reason = result.failed.get(m.id)
+            if reason is not None:
+                ctx.remove(m, arrived=False, reason=reason)
 
 
 class ReadBack:

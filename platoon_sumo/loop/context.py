@@ -13,16 +13,28 @@ when the run fails.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from platoon_sumo.control import Command, Telemetry
 from platoon_sumo.events import Event, EventKind
-from platoon_sumo.loop.fleet import Fleet, Member
+from platoon_sumo.loop.fleet import (
+    ACCEL,
+    FRONT_OFFSET,
+    LATERAL,
+    ROUTE_S,
+    SPEED,
+    YAW,
+    Fleet,
+    Member,
+    X,
+    Y,
+)
 from platoon_sumo.loop.ports import Backend
 from platoon_sumo.scenario import MemberPlan, PlatoonPlan, RunPlan
 from platoon_sumo.sensors.laser import LaserScan
@@ -102,13 +114,14 @@ class StepContext:
             self.emit(EventKind.REMOVED, member, detail=reason)
 
 
-@dataclass(frozen=True)
-class VehicleRecord:
-    """One platoon vehicle at the end of a step (immutable)."""
+class VehicleRecord(NamedTuple):
+    """One platoon vehicle at the end of a step (immutable; a named tuple because one is
+    built per platoon vehicle per step, five times faster than a frozen dataclass)."""
 
     id: str
     platoon_id: str
-    index: int
+    member_index: int
+    """Place in the platoon (0: leader)."""
     role: str
     x_m: float
     y_m: float
@@ -142,14 +155,23 @@ class VehicleRecord:
         return self.command.telemetry
 
 
-def vehicle_record(m: Member) -> VehicleRecord:
-    fx, fy = m.front_bumper()
+def vehicle_records(fleet: Fleet) -> tuple[VehicleRecord, ...]:
+    """Every member's record, in the fleet's order."""
+    members = list(fleet)
+    kin = fleet.kin[fleet.rows(members)].tolist()
+    return tuple(vehicle_record(m, k) for m, k in zip(members, kin, strict=True))
+
+
+def vehicle_record(m: Member, kin: list[float]) -> VehicleRecord:
+    """`m`'s record; `kin` is its row of the fleet's state."""
+    x, y, yaw, route_s = kin[X], kin[Y], kin[YAW], kin[ROUTE_S]
+    off = kin[FRONT_OFFSET]
     path = m.path
-    i = min(int(m.route_s_m // path.spacing_m), len(path.lane_width_m) - 1)
+    i = min(int(route_s // path.spacing_m), len(path.lane_width_m) - 1)
     return VehicleRecord(
-        m.id, m.platoon_id, m.index, m.plan.role, m.x_m, m.y_m, m.yaw_rad, fx, fy,
-        m.speed_mps, m.accel_mps2, m.platoon.config.vehicle.length_m, m.route_s_m,
-        m.lateral_offset_m, float(path.lane_width_m[max(i, 0)]), m.command, m.executed,
+        m.id, m.platoon_id, m.index, m.plan.role, x, y, yaw, x + off * math.cos(yaw),
+        y + off * math.sin(yaw), kin[SPEED], kin[ACCEL], m.platoon.config.vehicle.length_m,
+        route_s, kin[LATERAL], float(path.lane_width_m[max(i, 0)]), m.command, m.executed,
         m.supervisor_state, m.signal, m.vehicle_ahead, m.predecessor_id,
         m.gap_to_predecessor_m, m.predecessor_rays, dict(m.sensors),
     )  # fmt: skip

@@ -7,14 +7,15 @@ from platoon_sumo.control import Command, Observation
 from platoon_sumo.control.base import step_batch
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.fleet import Member
+from platoon_sumo.loop.fleet import LATERAL, SPEED, YAW, Member, X, Y
 from platoon_sumo.sensors.laser import LaserScan
 from platoon_sumo.supervisor import EMERGENCY, supervise
 
 
-def observation(m: Member, time_s: float, dt_s: float) -> Observation:
-    """What a controller sees: odometry, its route, SUMO's view of the road ahead (read
-    after the previous step) and its sensors' latest messages."""
+def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Observation:
+    """What a controller sees: odometry (`kin`, its row of the fleet's state), its route,
+    SUMO's view of the road ahead (read after the previous step) and its sensors' latest
+    messages."""
     cfg = m.platoon.config.vehicle
     scan = m.sensors.get("laser")
     return Observation(
@@ -22,16 +23,16 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
         dt_s=dt_s,
         vehicle_id=m.id,
         role=m.plan.role,
-        x_m=m.x_m,
-        y_m=m.y_m,
-        yaw_rad=m.yaw_rad,
-        speed_mps=m.speed_mps,
+        x_m=kin[X],
+        y_m=kin[Y],
+        yaw_rad=kin[YAW],
+        speed_mps=kin[SPEED],
         front_offset_m=cfg.front_offset_m,
         length_m=cfg.length_m,
         width_m=cfg.width_m,
         limits=m.platoon.limits,
         path=m.path,
-        lane_offset_m=0.0 if m.actuator.steers else m.lateral_offset_m,
+        lane_offset_m=0.0 if m.actuator.steers else kin[LATERAL],
         signal=m.signal,
         link_ahead=m.link_ahead,
         lane_change=m.lane_change,
@@ -44,13 +45,13 @@ def observation(m: Member, time_s: float, dt_s: float) -> Observation:
     )
 
 
-def desired_accel(m: Member, command: Command, dt_s: float) -> float:
+def desired_accel(m: Member, command: Command, dt_s: float, speed_mps: float) -> float:
     """The controller's own figure, else the commanded speed change within the limits."""
     telemetry = command.telemetry
     if telemetry is not None and telemetry.desired_accel_mps2 is not None:
         return float(telemetry.desired_accel_mps2)
     limits = m.platoon.limits
-    wanted = (command.speed_mps - m.speed_mps) / dt_s
+    wanted = (command.speed_mps - speed_mps) / dt_s
     return min(max(wanted, -limits.max_decel_mps2), limits.max_accel_mps2)
 
 
@@ -60,11 +61,14 @@ class Decide:
         if not members:
             return
         time_s = ctx.world.time_s
-        observations = [observation(m, time_s, ctx.dt_s) for m in members]
+        kin = ctx.fleet.kin[ctx.fleet.rows(members)].tolist()
+        observations = [
+            observation(m, time_s, ctx.dt_s, k) for m, k in zip(members, kin, strict=True)
+        ]
         commands = step_batch([m.controller for m in members], observations)
         for m, obs, command in zip(members, observations, commands, strict=True):
             m.command = command
-            m.desired_accel_mps2 = desired_accel(m, command, ctx.dt_s)
+            m.desired_accel_mps2 = desired_accel(m, command, ctx.dt_s, obs.speed_mps)
             m.executed, enforced = supervise(
                 m.platoon.config.supervisor, obs, command, m.actuator.sumo_drives
             )

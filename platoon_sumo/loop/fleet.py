@@ -95,17 +95,16 @@ class Member:
     """Rays of this step's laser scan that returned from the predecessor (None: no new
     scan this step)."""
 
-    @property
-    def id(self) -> str:
-        return self.plan.vehicle_id
+    id: str = field(init=False)
+    platoon_id: str = field(init=False)
+    index: int = field(init=False)
+    """The plan's vehicle id, platoon id and place in the platoon (copied: read by every
+    stage every step)."""
 
-    @property
-    def platoon_id(self) -> str:
-        return self.plan.platoon_id
-
-    @property
-    def index(self) -> int:
-        return self.plan.index
+    def __post_init__(self) -> None:
+        self.id = self.plan.vehicle_id
+        self.platoon_id = self.plan.platoon_id
+        self.index = self.plan.index
 
     def front_bumper(self) -> tuple[float, float]:
         off = self.front_offset_m

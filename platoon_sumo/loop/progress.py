@@ -39,6 +39,10 @@ def ahead_horizon_m(m: Member, dt_s: float) -> float:
 
 
 class RouteProgress:
+    def __init__(self) -> None:
+        self._horizons: dict[str, tuple[float, float]] = {}
+        """Per platoon: (search window, SUMO look-ahead horizon) [m]."""
+
     def __call__(self, ctx: StepContext) -> None:
         members = list(ctx.fleet)
         if not members:
@@ -49,20 +53,21 @@ class RouteProgress:
         previous_s_m = fleet.kin[rows, ROUTE_S]
         route_s_m: list[float] = []
         lateral_m: list[float] = []
-        for m, fx, fy, s_m in zip(
-            members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), strict=True
-        ):
-            window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
-            point = m.path.project(fx, fy, s_hint_m=s_m, window_m=window)
-            route_s_m.append(point.s_m)
-            lateral_m.append(point.lateral_offset_m)
+        horizons = [self._horizons_of(m, ctx.dt_s) for m in members]
+        for m, fx, fy, s_m, (window, _) in zip(
+            members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), horizons,
+            strict=True,
+        ):  # fmt: skip
+            s, lateral = m.path.project_sl(fx, fy, s_m, window)
+            route_s_m.append(s)
+            lateral_m.append(lateral)
         fleet.kin[rows, ROUTE_S] = route_s_m
         fleet.kin[rows, LATERAL] = lateral_m
         travelled = np.maximum(fleet.kin[rows, ROUTE_S] - previous_s_m, 0.0).tolist()
-        contexts = ctx.backend.route_contexts(
-            [m.id for m in members], [ahead_horizon_m(m, ctx.dt_s) for m in members]
-        )
-        for m, travelled_m, (signal, ahead, link) in zip(members, travelled, contexts, strict=True):
+        contexts = ctx.backend.route_contexts([m.id for m in members], [h for _, h in horizons])
+        for m, s_m, travelled_m, (signal, ahead, link) in zip(
+            members, route_s_m, travelled, contexts, strict=True
+        ):
             previous, m.signal = m.signal, signal
             m.vehicle_ahead, m.link_ahead = ahead, link
             if (
@@ -74,5 +79,12 @@ class RouteProgress:
                     EventKind.RED_LIGHT, m, other=previous.tls_id,
                     detail=f"link {previous.link_index} {previous.state}",
                 )  # fmt: skip
-            if m.route_s_m >= m.path.length_m - ARRIVAL_TOLERANCE_M:
+            if s_m >= m.path.length_m - ARRIVAL_TOLERANCE_M:
                 ctx.remove(m, arrived=True)
+
+    def _horizons_of(self, m: Member, dt_s: float) -> tuple[float, float]:
+        found = self._horizons.get(m.platoon_id)
+        if found is None:
+            window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
+            found = self._horizons[m.platoon_id] = (window, ahead_horizon_m(m, dt_s))
+        return found

@@ -212,6 +212,24 @@ class LaserScan:
         if r.shape != (config.samples,):
             raise ValueError(f"ranges: expected shape ({config.samples},), got {r.shape}")
         ox, oy = (float(v) for v in np.asarray(origin, dtype=np.float64).reshape(2))
+        return cls.of_checked(
+            config, r, ox, oy, float(heading_rad), float(stamp_s), hit_labels, predecessor_rays
+        )
+
+    @classmethod
+    def of_checked(
+        cls,
+        config: LaserConfig,
+        ranges: FloatArray,
+        origin_x_m: float,
+        origin_y_m: float,
+        heading_rad: float,
+        stamp_s: float,
+        hit_labels: IntArray | None,
+        predecessor_rays: int | None,
+    ) -> LaserScan:
+        """``from_ranges`` without its checks and conversions, for the sensor's hot path:
+        `ranges` is a float64 row of ``config.samples`` readings, the rest plain floats."""
         return cls(
             angle_min=config.angle_min_rad,
             angle_max=config.angle_max_rad,
@@ -220,11 +238,11 @@ class LaserScan:
             scan_time=config.scan_time_s,
             range_min=config.range_min_m,
             range_max=config.range_max_m,
-            ranges=r,
-            origin_x_m=ox,
-            origin_y_m=oy,
-            heading_rad=float(heading_rad),
-            stamp_s=float(stamp_s),
+            ranges=ranges,
+            origin_x_m=origin_x_m,
+            origin_y_m=origin_y_m,
+            heading_rad=heading_rad,
+            stamp_s=stamp_s,
             hit_labels=hit_labels,
             predecessor_rays=predecessor_rays,
         )

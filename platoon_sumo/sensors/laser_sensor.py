@@ -33,24 +33,16 @@ class LaserSensor:
             segments=batch.static_segments, exclude=batch.own_index, rng=batch.rng,
             return_hits=True,
         )  # fmt: skip
-        scans = []
-        for k in range(len(batch.vehicle_ids)):
-            pred = int(batch.predecessor_index[k])
-            # a return: a finite range (closer than range_min reads -inf, no range)
-            on_pred = (
-                int(np.count_nonzero((hits[k] == pred) & np.isfinite(ranges[k])))
-                if pred >= 0
-                else None
+        # rays returning from the predecessor: a finite range (closer than range_min
+        # reads -inf, no range) labelled with its row; counted for all scans at once
+        pred = batch.predecessor_index
+        on_pred = np.count_nonzero((hits == pred[:, None]) & np.isfinite(ranges), axis=1)
+        rows = zip(
+            origins.tolist(), headings.tolist(), pred.tolist(), on_pred.tolist(), strict=True
+        )
+        return [
+            LaserScan.of_checked(
+                laser, ranges[k], ox, oy, heading, batch.time_s, hits[k], on if p >= 0 else None
             )
-            scans.append(
-                LaserScan.from_ranges(
-                    laser,
-                    ranges[k],
-                    origins[k],
-                    float(headings[k]),
-                    batch.time_s,
-                    hit_labels=hits[k],
-                    predecessor_rays=on_pred,
-                )
-            )
-        return scans
+            for k, ((ox, oy), heading, p, on) in enumerate(rows)
+        ]

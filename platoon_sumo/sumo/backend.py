@@ -191,6 +191,7 @@ class SumoBackend:
             self._api = _GuiConnection(traci)
         self._running = False
         self._geometry: dict[str, tuple[float, float]] = {}
+        self._min_gaps: dict[str, float] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
         self._polylines: dict[str, tuple[list[float], list[float], list[float], float]] = {}
@@ -770,6 +771,7 @@ class SumoBackend:
     def _forget(self, vid: str) -> None:
         """Drop what is kept about a vehicle that left the network."""
         self._geometry.pop(vid, None)
+        self._min_gaps.pop(vid, None)
         self._lanes_behind.pop(vid, None)
         self._handed_over.discard(vid)
         self._slow_since.pop(vid, None)
@@ -826,13 +828,16 @@ class SumoBackend:
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
         """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""
-        found = self._api.vehicle.getLeader(vehicle_id, horizon_m)
+        veh = self._api.vehicle
+        found = veh.getLeader(vehicle_id, horizon_m)
         if not found or not found[0]:
             return None
         other = str(found[0])
+        min_gap = self._min_gaps.get(vehicle_id)
+        if min_gap is None:  # fixed by its type: read once
+            min_gap = self._min_gaps[vehicle_id] = float(veh.getMinGap(vehicle_id))
         # getLeader's distance excludes the asking vehicle's minGap: add it back.
-        gap = float(found[1]) + self._api.vehicle.getMinGap(vehicle_id)
-        return VehicleAhead(other, gap, float(self._api.vehicle.getSpeed(other)))
+        return VehicleAhead(other, float(found[1]) + min_gap, float(veh.getSpeed(other)))
 
     def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
         """Collisions SUMO itself detected this step: (collider, victim, type)."""
