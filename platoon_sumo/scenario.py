@@ -552,7 +552,7 @@ class OutputConfig:
     chunk_rows: int = bounded(20_000, ge=1, le=10_000_000)
     """Rows buffered before the trajectory table is appended to disk."""
     format: str = "csv"
-    """Format of the trajectory table: `csv`, or `parquet` (needs platoon-sumo[parquet])."""
+    """Format of the trajectory table: `csv`, or `parquet`."""
     metrics_start_s: float = bounded(0.0, ge=0, le=MAX_TIME_S)
     """Spacing, comfort and string-stability metrics use the steps from this simulation
     time on (e.g. after a warm-up); safety events always count over the whole run [s]."""

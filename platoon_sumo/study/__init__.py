@@ -15,7 +15,6 @@ and writes the tables (`table`) into the study folder:
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import tempfile
@@ -80,8 +79,7 @@ def run_study(
         table = study_table(runs, outcomes, run_dirs, study.config.metrics)
         summary = aggregate(table, list(study.values), study.config.metrics)
         table.to_csv(folder / "study.csv", index=False)
-        if importlib.util.find_spec("pyarrow") is not None:  # the parquet extra
-            table.to_parquet(folder / "study.parquet", index=False)
+        table.to_parquet(folder / "study.parquet", index=False)
         summary.to_csv(folder / "aggregate.csv", index=False)
         finished = [run_dirs[rid] for rid in table.run_id[table.status == COMPLETE]]
         warnings = unknown_metrics(finished, study.config.metrics) if finished else []
