@@ -1,7 +1,9 @@
 """How commands reach SUMO: actuation modes as plug-ins (`platoons[].actuation`).
 
-An actuator gets one platoon's executed commands as arrays and moves its vehicles for
-the next SUMO step. Three are built in:
+An actuator gets the executed commands of a group of platoons that share the mode,
+vehicle, limits and model (`loop.actuate.Actuate`; usually the whole fleet) as arrays
+and moves their vehicles for the next SUMO step; state an actuator keeps between steps
+is per vehicle id (the group's first member's instance is called). Three are built in:
 
 - `planar`: our vehicle model integrates speed and yaw rate and the pose is placed into
   SUMO (`moveToXY` + `setPreviousSpeed`): free lateral motion, our own lane changes.
@@ -62,8 +64,8 @@ class ActuationPort(Protocol):
 
 @dataclass(frozen=True)
 class ActuationBatch:
-    """One platoon's vehicles (they share a model and limits) and their executed
-    commands. The state is the model's reference point (rear axle / wheel axle)."""
+    """Vehicles of one or more platoons that share a model, limits and vehicle, and
+    their executed commands. The state is the model's reference point (rear axle / wheel axle)."""
 
     vehicle_ids: tuple[str, ...]
     state: KinematicState

@@ -212,12 +212,12 @@ class LaserScan:
         if r.shape != (config.samples,):
             raise ValueError(f"ranges: expected shape ({config.samples},), got {r.shape}")
         ox, oy = (float(v) for v in np.asarray(origin, dtype=np.float64).reshape(2))
-        return cls.of_checked(
+        return cls.unchecked(
             config, r, ox, oy, float(heading_rad), float(stamp_s), hit_labels, predecessor_rays
         )
 
     @classmethod
-    def of_checked(
+    def unchecked(
         cls,
         config: LaserConfig,
         ranges: FloatArray,

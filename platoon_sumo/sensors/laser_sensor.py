@@ -41,7 +41,7 @@ class LaserSensor:
             origins.tolist(), headings.tolist(), pred.tolist(), on_pred.tolist(), strict=True
         )
         return [
-            LaserScan.of_checked(
+            LaserScan.unchecked(
                 laser, ranges[k], ox, oy, heading, batch.time_s, hits[k], on if p >= 0 else None
             )
             for k, ((ox, oy), heading, p, on) in enumerate(rows)
