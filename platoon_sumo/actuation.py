@@ -65,7 +65,8 @@ class ActuationPort(Protocol):
 @dataclass(frozen=True)
 class ActuationBatch:
     """Vehicles of one or more platoons that share a model, limits and vehicle, and
-    their executed commands. The state is the model's reference point (rear axle / wheel axle)."""
+    their executed commands. The state is the model's reference point (rear axle /
+    wheel axle)."""
 
     vehicle_ids: tuple[str, ...]
     state: KinematicState

@@ -162,12 +162,6 @@ class Fleet:
     def ids(self) -> list[str]:
         return list(self._members)
 
-    def by_platoon(self) -> dict[str, list[Member]]:
-        groups: dict[str, list[Member]] = {}
-        for m in self._members.values():
-            groups.setdefault(m.platoon_id, []).append(m)
-        return groups
-
     @staticmethod
     def rows(members: Sequence[Member]) -> NDArray[np.int64]:
         return np.fromiter((m.row for m in members), dtype=np.int64, count=len(members))

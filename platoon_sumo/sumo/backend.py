@@ -319,7 +319,7 @@ class SumoBackend:
             index={vid: i for i, vid in enumerate(ids)},
         )
 
-    def _lanes_near(self, points: NDArray[np.float64], radius_m: float) -> tuple[str, ...]:
+    def _lanes_near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
         """Lanes (internal ones included) with a shape segment within `radius_m` of a
         point (conservatively: by grid cell), in a fixed order."""
         grid = self._lane_grid
@@ -895,8 +895,6 @@ class _LaneGrid:
     cells: dict[tuple[int, int], tuple[int, ...]]
     lane_ids: tuple[str, ...]
     around: dict[tuple[int, int, int], frozenset[int]] = field(default_factory=dict)
-    last: list[Any] = field(default_factory=list)
-    """The last query's (cells, reach) and its answer."""
 
     @classmethod
     def build(cls, api: ModuleType | _GuiConnection, cell_m: float) -> _LaneGrid:
@@ -913,18 +911,13 @@ class _LaneGrid:
                         cells.setdefault((cx, cy), []).append(k)
         return cls(cell_m, {c: tuple(sorted(set(v))) for c, v in cells.items()}, lane_ids)
 
-    def near(self, points: NDArray[np.float64], radius_m: float) -> tuple[str, ...]:
+    def near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
         reach = math.ceil(radius_m / self.cell_m)
-        base = frozenset(map(tuple, np.floor(points / self.cell_m).astype(np.int64).tolist()))
-        last = self.last
-        if last and last[0] == (base, reach):  # the platoons are still in the same cells
-            return last[1]
+        base = set(map(tuple, np.floor(points / self.cell_m).astype(np.int64).tolist()))
         found: set[int] = set()
         for cell in base:
             found |= self._around(cell, reach)
-        lanes = tuple(self.lane_ids[k] for k in sorted(found))
-        self.last[:] = [(base, reach), lanes]
-        return lanes
+        return [self.lane_ids[k] for k in sorted(found)]
 
     def _around(self, cell: tuple[int, ...], reach: int) -> frozenset[int]:
         """Lanes in the cells within `reach` cells of `cell` (remembered: platoons pass
