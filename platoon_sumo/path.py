@@ -20,7 +20,12 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.kernels.route import lane_step_kernel, path_blocks, project_pruned
+from platoon_sumo.kernels.route import (
+    lane_step_kernel,
+    path_blocks,
+    project_pruned,
+    same_lane_kernel,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -303,6 +308,15 @@ class RoutePath:
         """Do both points lie in the same lane of the same edge (outside junctions)? Also
         along the route's lane changes, where the path runs between lanes
         (`_lane_shift`)."""
+        codes = self._lane_codes
+        if len(codes):
+            same = same_lane_kernel(
+                codes, self._lane_width_c, self._lane_shift_c, self.spacing_m, float(s_m),
+                float(offset_m), float(target_s_m), float(target_offset_m),
+            )  # fmt: skip
+            if same != -2:
+                return same == 1
+        # (an unusual lane id, or a value that raises below) in Python
         if not all(math.isfinite(v) for v in (s_m, offset_m, target_s_m, target_offset_m)):
             return False
         own = self._lane_of(s_m, offset_m, shifted=True)
@@ -326,6 +340,10 @@ class RoutePath:
             return None
         lanes = offset_m / self._lane_width[i] + (self._lane_shift[i] if shifted else 0.0)
         return key[0], int(key[1]) + round(lanes)
+
+    @cached_property
+    def _lane_shift_c(self) -> FloatArray:
+        return np.array(self._lane_shift, dtype=np.float64)
 
     @cached_property
     def _lane_shift(self) -> list[float]:

@@ -143,6 +143,9 @@ def test_scalar_lookups_match_the_numpy_reference(name, s, target_s, offset, tar
     assert path.lane_step(s, offset, target_s, target_offset) == ref.lane_step(
         path, s, offset, target_s, target_offset
     )
+    assert path.same_lane(s, offset, target_s, target_offset) == ref.same_lane(
+        path, s, offset, target_s, target_offset
+    )
     assert path.length_m == ref.length_m(path)
 
 

@@ -219,6 +219,52 @@ def lane_step_kernel(
 
 
 @njit(cache=True)
+def _shifted_lane(
+    codes: np.ndarray, widths: np.ndarray, shift: np.ndarray, spacing: float, s: float,
+    offset: float,
+) -> tuple[int, int]:  # fmt: skip
+    """(edge number, lane index) of the point `offset` beside the path at `s`, counted from
+    where the path centre runs (``shift``); edge -1 in a junction, -2 where the Python
+    code would raise (a lane width of 0, a lane count that does not fit an integer)."""
+    i = min(int(_pmax(s, 0.0) // spacing), codes.shape[0] - 1)
+    edge = codes[i, 0]
+    if edge < 0:
+        return -1, 0
+    if widths[i] == 0.0:
+        return -2, 0
+    lanes = offset / widths[i] + shift[i]
+    if not abs(lanes) < 1e15:
+        return -2, 0
+    return edge, codes[i, 1] + round(lanes)
+
+
+@njit(cache=True)
+def same_lane_kernel(
+    codes: np.ndarray,
+    widths: np.ndarray,
+    shift: np.ndarray,
+    spacing: float,
+    s: float,
+    offset: float,
+    target_s: float,
+    target_offset: float,
+) -> int:
+    """``RoutePath.same_lane`` on arrays (``codes``, ``widths`` as for
+    ``lane_step_kernel``, ``shift`` per point: ``RoutePath._lane_shift``): 1 or 0, -2
+    where the Python code would raise."""
+    finite = math.isfinite(s) and math.isfinite(offset)
+    if not (finite and math.isfinite(target_s) and math.isfinite(target_offset)):
+        return 0
+    own_edge, own_lane = _shifted_lane(codes, widths, shift, spacing, s, offset)
+    if own_edge < 0:
+        return own_edge if own_edge == -2 else 0
+    edge, lane = _shifted_lane(codes, widths, shift, spacing, target_s, target_offset)
+    if edge == -2:
+        return -2
+    return 1 if edge == own_edge and lane == own_lane else 0
+
+
+@njit(cache=True)
 def _point_at(xy: np.ndarray, spacing: float, length: float, last_step: float, s_m: float):
     """``RoutePath.point_at``."""
     s = _pmin(_pmax(s_m, 0.0), length)

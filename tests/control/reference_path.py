@@ -45,15 +45,23 @@ def lane_at(path: RoutePath, s_m: float) -> str:
     return path.lane_ids[int(path.lane_index[i])]
 
 
-def lane_beside(path: RoutePath, s_m: float, lateral_offset_m: float) -> tuple[str, int] | None:
-    if any(c.begin_s_m <= s_m <= c.end_s_m for c in path.lane_changes):
-        return None
+def _lanes_beside(path: RoutePath, s_m: float, lanes: float) -> tuple[str, int] | None:
+    """(edge, lane index) `lanes` lane widths beside the lane at `s_m`; None in a junction."""
     lane = lane_at(path, s_m)
     if lane.startswith(":"):
         return None
     edge, index = lane.rsplit("_", 1)
-    i = min(int(max(s_m, 0.0) // path.spacing_m), len(path.lane_width_m) - 1)
-    return edge, int(index) + round(lateral_offset_m / float(path.lane_width_m[i]))
+    return edge, int(index) + round(lanes)
+
+
+def _width_at(path: RoutePath, s_m: float) -> float:
+    return float(path.lane_width_m[min(int(max(s_m, 0.0) // path.spacing_m), len(path.xy_m) - 1)])
+
+
+def lane_beside(path: RoutePath, s_m: float, lateral_offset_m: float) -> tuple[str, int] | None:
+    if any(c.begin_s_m <= s_m <= c.end_s_m for c in path.lane_changes):
+        return None
+    return _lanes_beside(path, s_m, lateral_offset_m / _width_at(path, s_m))
 
 
 def lane_step(
@@ -64,6 +72,22 @@ def lane_step(
     if own is None or target is None or own[0] != target[0] or own[1] == target[1]:
         return 0
     return 1 if target[1] > own[1] else -1
+
+
+def same_lane(
+    path: RoutePath, s_m: float, offset_m: float, target_s_m: float, target_offset_m: float
+) -> bool:
+    """Both points in one lane of one edge, lanes counted from where the path centre runs
+    (along a route's lane change it runs between lanes: `RoutePath._lane_shift`)."""
+
+    def lane(s: float, offset: float) -> tuple[str, int] | None:
+        if not (np.isfinite(s) and np.isfinite(offset)):
+            return None
+        i = min(int(max(s, 0.0) // path.spacing_m), len(path.xy_m) - 1)
+        return _lanes_beside(path, s, offset / _width_at(path, s) + path._lane_shift[i])
+
+    own = lane(s_m, offset_m)
+    return own is not None and own == lane(target_s_m, target_offset_m)
 
 
 def project(
