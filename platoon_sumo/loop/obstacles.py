@@ -45,7 +45,8 @@ class ObstaclesAhead:
     side, a comfortable stop plus `LOOK_TIME_S` of driving plus `LOOK_EXTRA_M` long; the
     nearest other footprint (on a road that can touch) reaching into it, with its speed
     along the corridor (0 when oncoming), unless it is crossing and will have left
-    (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here.
+    (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
+    unless its body reaches into the corridor nearer than SUMO's gap says.
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -115,8 +116,17 @@ class ObstaclesAhead:
             i = int(rect[k])
             other = world.ids[i]
             leader = m.vehicle_ahead
-            if leader is not None and leader.vehicle_id == other:
-                continue  # SUMO's leader: its gap is exact
+            slice_m = float(constants[j, 3] * constants[j, 2])
+            if (
+                leader is not None
+                and leader.vehicle_id == other
+                and gap[k] > leader.gap_m - slice_m
+            ):
+                # SUMO's leader, whose gap along the lanes is the exact one; unless its
+                # body reaches nearer than that by more than a slice of the corridor (a
+                # car standing across the lane: osm_spreewaldring, SUMO's gap 4.41 m,
+                # the footprints 3.84 m apart, and the follower ran into it)
+                continue
             # a bridge over the path is no obstacle. Compared with the member's own lane,
             # so a body beyond the next junction is not seen until the member reaches the
             # edge before it; compared with the route's lane at the hit instead, platoon

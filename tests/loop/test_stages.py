@@ -28,6 +28,7 @@ from platoon_sumo.loop.sensing import Sense
 from platoon_sumo.runner import load_plan
 from platoon_sumo.scenario import RunPlan
 from platoon_sumo.vehicles import Bicycle
+from platoon_sumo.world import VehicleAhead
 from tests.fakes import LANE_Y_M, FakeBackend, FakeVehicle
 from tests.helpers import REPO
 
@@ -406,6 +407,33 @@ def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(w
     assert 5.0 - 0.5 <= ahead.gap_m <= 5.0  # its rear at x 105 (slices of 0.5 m)
     assert ahead.speed_mps == pytest.approx(3.0)
     assert found[3] is not None and found[3].speed_mps == 0.0  # oncoming: a standing obstacle
+
+
+def test_sumos_leader_is_an_obstacle_when_its_body_reaches_nearer_than_its_gap(
+    write_scenario,
+):
+    """SUMO's gap to its leader follows the lanes: a car standing across the lane reaches
+    nearer than its lane position says (osm_spreewaldring: SUMO's gap 4.41 m, the bodies
+    3.84 m apart, and the follower ran into it). The corridor check then reports it; a
+    leader whose body is where SUMO's gap puts it is not repeated."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)  # p.0's front bumper at x 100, on the lane's centre line
+    # standing across the lane, its side 5.1 m ahead of p.0's bumper
+    backend.vehicles["h"] = FakeVehicle(106.0, LANE_Y_M - 2.25, yaw_rad=-np.pi / 2)
+    found = []
+    for sumo_gap_m in (9.0, 5.1, 5.4):
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        member = ctx.fleet.get("p.0")
+        member.vehicle_ahead = VehicleAhead("h", sumo_gap_m, 0.0)
+        ObstaclesAhead()(ctx)
+        found.append(member.obstacle_ahead)
+    ahead = found[0]
+    assert ahead is not None and ahead.vehicle_id == "h"
+    assert 5.1 - 0.5 <= ahead.gap_m <= 5.1  # slices of 0.5 m
+    assert found[1] is None and found[2] is None  # SUMO's gap is the body's (a slice on)
 
 
 def test_sumo_reports_count_each_collision_once(write_scenario):
