@@ -46,7 +46,8 @@ class ObstaclesAhead:
     nearest other footprint (on a road that can touch) reaching into it, with its speed
     along the corridor (0 when oncoming), unless it is crossing and will have left
     (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
-    unless its body reaches into the corridor nearer than SUMO's gap says.
+    unless SUMO drives the member and the leader's body reaches into the corridor
+    nearer than SUMO's gap says.
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -116,17 +117,17 @@ class ObstaclesAhead:
             i = int(rect[k])
             other = world.ids[i]
             leader = m.vehicle_ahead
-            slice_m = float(constants[j, 3] * constants[j, 2])
-            if (
-                leader is not None
-                and leader.vehicle_id == other
-                and gap[k] > leader.gap_m - slice_m
-            ):
-                # SUMO's leader, whose gap along the lanes is the exact one; unless its
-                # body reaches nearer than that by more than a slice of the corridor (a
-                # car standing across the lane: osm_spreewaldring, SUMO's gap 4.41 m,
-                # the footprints 3.84 m apart, and the follower ran into it)
-                continue
+            if leader is not None and leader.vehicle_id == other:
+                # SUMO's leader, whose gap along the lanes is the exact one; unless SUMO
+                # drives the member (its safe speed keeps that gap) and the leader's body
+                # reaches nearer than the gap by more than a slice of the corridor (a car
+                # standing across the lane: osm_spreewaldring, SUMO's gap 4.41 m, the
+                # footprints 3.84 m apart, and the follower ran into it). Placed members
+                # (planar) keep the old rule: with it the paper world's robots had 449
+                # emergency brakings in a lap, none without
+                slice_m = float(constants[j, 3] * constants[j, 2])
+                if not m.actuator.sumo_drives or gap[k] > leader.gap_m - slice_m:
+                    continue
             # a bridge over the path is no obstacle. Compared with the member's own lane,
             # so a body beyond the next junction is not seen until the member reaches the
             # edge before it; compared with the route's lane at the hit instead, platoon
