@@ -122,9 +122,9 @@ class ObstaclesAhead:
                 # drives the member (its safe speed keeps that gap) and the leader's body
                 # reaches nearer than the gap by more than a slice of the corridor (a car
                 # standing across the lane: osm_spreewaldring, SUMO's gap 4.41 m, the
-                # footprints 3.84 m apart, and the follower ran into it). Placed members
-                # (planar) keep the old rule: with it the paper world's robots had 449
-                # emergency brakings in a lap, none without
+                # footprints 3.84 m apart, and the follower ran into it). Members we place
+                # (planar) are left to SUMO's gap: the nearer-body test gave the paper
+                # world's robots 449 emergency brakings in a lap, none without it
                 slice_m = float(constants[j, 3] * constants[j, 2])
                 if not m.actuator.sumo_drives or gap[k] > leader.gap_m - slice_m:
                     continue
