@@ -167,6 +167,35 @@ def profile_speed_pruned(
 
 
 @njit(cache=True)
+def _lane_beside(
+    codes: np.ndarray, widths: np.ndarray, shift: np.ndarray, spacing: float, s: float,
+    offset: float,
+) -> tuple[int, int]:  # fmt: skip
+    """(edge number, lane index) of the point `offset` beside the path at `s`, in lane
+    widths from the lane there, plus ``shift`` at that point when given (no rows: none);
+    edge -1 in a junction, -2 where the Python code would raise (a NaN or infinite arc
+    length, a lane width of 0, a lane count that does not fit an integer)."""
+    m = _pmax(s, 0.0)
+    if not math.isfinite(m):
+        return -2, 0
+    i = min(int(m // spacing), codes.shape[0] - 1)
+    edge = codes[i, 0]
+    if edge < 0:
+        return -1, 0
+    if widths[i] == 0.0:
+        return -2, 0
+    lanes = offset / widths[i]
+    if shift.shape[0]:
+        lanes += shift[i]
+    if not abs(lanes) < 1e15:
+        return -2, 0
+    return edge, codes[i, 1] + round(lanes)
+
+
+_NO_SHIFT = np.zeros(0)
+
+
+@njit(cache=True)
 def lane_step_kernel(
     codes: np.ndarray,
     widths: np.ndarray,
@@ -186,56 +215,15 @@ def lane_step_kernel(
         end = spans[c, 1]
         if (begin <= s and s <= end) or (begin <= target_s and target_s <= end):
             return 0
-    last = codes.shape[0] - 1
-    m = _pmax(s, 0.0)
-    if not math.isfinite(m):
-        return -2
-    i = min(int(m // spacing), last)
-    own_edge = codes[i, 0]
+    own_edge, own_lane = _lane_beside(codes, widths, _NO_SHIFT, spacing, s, offset)
     if own_edge < 0:
-        return 0
-    if widths[i] == 0.0:
-        return -2
-    ratio = offset / widths[i]
-    if not abs(ratio) < 1e15:
-        return -2
-    own_lane = codes[i, 1] + round(ratio)
-    m = _pmax(target_s, 0.0)
-    if not math.isfinite(m):
-        return -2
-    j = min(int(m // spacing), last)
-    target_edge = codes[j, 0]
-    if target_edge < 0:
-        return 0
-    if widths[j] == 0.0:
-        return -2
-    ratio = target_offset / widths[j]
-    if not abs(ratio) < 1e15:
-        return -2
-    target_lane = codes[j, 1] + round(ratio)
-    if own_edge != target_edge or own_lane == target_lane:
-        return 0
-    return 1 if target_lane > own_lane else -1
-
-
-@njit(cache=True)
-def _shifted_lane(
-    codes: np.ndarray, widths: np.ndarray, shift: np.ndarray, spacing: float, s: float,
-    offset: float,
-) -> tuple[int, int]:  # fmt: skip
-    """(edge number, lane index) of the point `offset` beside the path at `s`, counted from
-    where the path centre runs (``shift``); edge -1 in a junction, -2 where the Python
-    code would raise (a lane width of 0, a lane count that does not fit an integer)."""
-    i = min(int(_pmax(s, 0.0) // spacing), codes.shape[0] - 1)
-    edge = codes[i, 0]
+        return own_edge if own_edge == -2 else 0
+    edge, lane = _lane_beside(codes, widths, _NO_SHIFT, spacing, target_s, target_offset)
     if edge < 0:
-        return -1, 0
-    if widths[i] == 0.0:
-        return -2, 0
-    lanes = offset / widths[i] + shift[i]
-    if not abs(lanes) < 1e15:
-        return -2, 0
-    return edge, codes[i, 1] + round(lanes)
+        return edge if edge == -2 else 0
+    if own_edge != edge or own_lane == lane:
+        return 0
+    return 1 if lane > own_lane else -1
 
 
 @njit(cache=True)
@@ -255,10 +243,10 @@ def same_lane_kernel(
     finite = math.isfinite(s) and math.isfinite(offset)
     if not (finite and math.isfinite(target_s) and math.isfinite(target_offset)):
         return 0
-    own_edge, own_lane = _shifted_lane(codes, widths, shift, spacing, s, offset)
+    own_edge, own_lane = _lane_beside(codes, widths, shift, spacing, s, offset)
     if own_edge < 0:
         return own_edge if own_edge == -2 else 0
-    edge, lane = _shifted_lane(codes, widths, shift, spacing, target_s, target_offset)
+    edge, lane = _lane_beside(codes, widths, shift, spacing, target_s, target_offset)
     if edge == -2:
         return -2
     return 1 if edge == own_edge and lane == own_lane else 0
