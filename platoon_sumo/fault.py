@@ -16,11 +16,16 @@ The rules, in order (docs/metrics.md):
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.
-2. **Front into side or rear.** Otherwise, when exactly one vehicle moves towards the
-   contact and has it in the front quarter of its body, that vehicle struck the other (a
-   rear-end, a car running into a crossing car's side).
-3. **Closing faster.** Otherwise, the vehicle whose velocity points more towards the
-   contact, by more than `TIE_MPS`, and towards it at more than `TIE_MPS`.
+2. **Front into side or rear.** Otherwise, when exactly one vehicle closes on the other
+   and has the contact in the front quarter of its body, that vehicle struck the other
+   (a rear-end, a car running into a crossing car's side).
+3. **Closing faster.** Otherwise, the vehicle that closes on the other faster, by more
+   than `TIE_MPS`, and at more than `TIE_MPS`.
+
+A vehicle closes on the other at the rate its own motion over the step, with the other
+held at its footprint of the step's start, shrank the gap between them (footprints
+apart) or deepened their overlap: a rigid body's motion, so a rear swinging into the
+other closes on it and a front that only crept beside a swinging body does not.
 4. **Swept into a standing vehicle.** Otherwise, when one vehicle moves (at least
    `TIE_MPS`) and the other stands, the mover (its body swept into the other, e.g. its
    rear swinging out in a turn); else nobody (``None``).
@@ -47,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import Polygon
 
-from platoon_sumo.geometry import CX, CY, LENGTH, WIDTH, YAW, rectangle_corners
+from platoon_sumo.geometry import CX, CY, LENGTH, WIDTH, YAW, penetration_depths, rectangle_corners
 
 #: Speed towards the other vehicle's centre line that makes a sideways intrusion [m/s]
 #: (a lane change in SUMO's sublane model moves at about 1 m/s; tracking a lane's centre
@@ -59,8 +64,6 @@ SIDEWAYS_MPS = 0.3
 BESIDE_SHARE = 0.5
 #: Closing speeds closer than this are a tie, and a vehicle slower than this stands [m/s].
 TIE_MPS = 0.1
-#: A contact point this close to a body's centre gives it no direction [m].
-AT_CENTRE_M = 1e-3
 #: A contact this far forward of the body's centre (share of half the length) is on its front.
 FRONT_SHARE = 0.5
 
@@ -156,19 +159,19 @@ def contact_fault(
             return 0.0
         return math.copysign(1.0, side) * (velocity[i][0] * nx + velocity[i][1] * ny)
 
-    def closing(i: int) -> float:
-        """Speed of vehicle i towards the contact (none when the contact lies at its
-        centre, where the direction to it is rounding noise)."""
-        dx, dy = cx - rects[i, CX], cy - rects[i, CY]
-        norm = math.hypot(dx, dy)
-        if norm < AT_CENTRE_M:
-            return 0.0
-        return (velocity[i][0] * dx + velocity[i][1] * dy) / norm
+    # each vehicle's own motion over the step, the other held at its footprint of the
+    # step's start: how fast it closed the gap between them (rigid: turns included)
+    started = [_start_of_step(rects[i], velocity[i], turns[i], step_s) for i in (0, 1)]
+    gap_before = _signed_gap_m(started[0], started[1])
+    closing = [
+        (gap_before - _signed_gap_m(rects[0], started[1])) / step_s,
+        (gap_before - _signed_gap_m(started[0], rects[1])) / step_s,
+    ]
 
     def struck_with_front(i: int) -> bool:
         c, s = math.cos(rects[i, YAW]), math.sin(rects[i, YAW])
         ahead = (cx - rects[i, CX]) * c + (cy - rects[i, CY]) * s
-        return ahead >= FRONT_SHARE * 0.5 * rects[i, LENGTH] and closing(i) > TIE_MPS
+        return ahead >= FRONT_SHARE * 0.5 * rects[i, LENGTH] and closing[i] > TIE_MPS
 
     # the centre's speed, or the body's at the contact when it turned faster there
     moved = [
@@ -189,9 +192,8 @@ def contact_fault(
     fronts = [struck_with_front(i) for i in (0, 1)]
     if fronts[0] != fronts[1]:
         return Fault(0 if fronts[0] else 1, FRONT, cx, cy)
-    close = [closing(i) for i in (0, 1)]
-    if abs(close[0] - close[1]) > TIE_MPS and max(close) > TIE_MPS:
-        return Fault(0 if close[0] > close[1] else 1, CLOSING, cx, cy)
+    if abs(closing[0] - closing[1]) > TIE_MPS and max(closing) > TIE_MPS:
+        return Fault(0 if closing[0] > closing[1] else 1, CLOSING, cx, cy)
     moving = [abs(s) >= TIE_MPS for s in speeds]
     if moving[0] != moving[1]:
         return Fault(0 if moving[0] else 1, SWEPT, cx, cy)
@@ -204,6 +206,27 @@ def was_placed(moved_m: ArrayLike, speed_mps: ArrayLike, step_s: float) -> NDArr
     by more than `PLACED_MPS`: placed by SUMO, not driven?"""
     excess_m = np.asarray(moved_m, dtype=np.float64) - np.abs(speed_mps) * step_s
     return np.asarray((excess_m > PLACED_MPS * step_s) & (excess_m > PLACED_M))
+
+
+def _start_of_step(
+    rect: np.ndarray, velocity: tuple[float, float], turn_rad: float, step_s: float
+) -> np.ndarray:
+    """The footprint at the step's start: the centre moved back, the heading turned back."""
+    start = rect.copy()
+    start[CX] -= velocity[0] * step_s
+    start[CY] -= velocity[1] * step_s
+    start[YAW] -= turn_rad
+    return start
+
+
+def _signed_gap_m(rect_a: np.ndarray, rect_b: np.ndarray) -> float:
+    """Distance between two footprints, or minus their penetration depth when they
+    overlap [m]: it changes by at most how far either body moved."""
+    depth = float(penetration_depths(rect_a, rect_b)[0])
+    if depth > 0.0:
+        return -depth
+    corners = rectangle_corners(np.vstack([rect_a, rect_b]))
+    return float(Polygon(corners[0]).distance(Polygon(corners[1])))
 
 
 def _point_moved_m(

@@ -187,9 +187,12 @@ def test_a_car_placed_onto_another_is_at_fault_by_its_measured_motion():
     assert (fault.at_fault, fault.reason) == (1, PLACED)
     # driven there: 4.5 m/s over its end speed after braking at 9 m/s^2 over a 1 s step,
     # or moving 0.5 m beyond its speed in a 0.05 s step (10 m/s more, but under 1 m)
-    for motion_b, step_s in (((13.0, 0.0), 1.0), ((18.5, 0.0), 0.05)):
+    # (13 m in a 1 s step: it came from behind the slow car's front and closed faster;
+    # 0.9 m in 0.05 s: it was already there, and the slow car's front struck it)
+    for motion_b, step_s, at_fault in (((13.0, 0.0), 1.0, 1), ((18.5, 0.0), 0.05, 0)):
         fault = contact_fault(slow, placed, 1.2, 8.5, None, None, (1.2, 0.0), motion_b, step_s)
-        assert (fault.at_fault, fault.reason) == (0, FRONT)
+        assert fault.reason not in (PLACED, PLACED_RECENTLY)
+        assert fault.at_fault == at_fault
 
 
 def test_a_car_turned_onto_another_faster_than_it_drives_is_at_fault():
@@ -200,14 +203,39 @@ def test_a_car_turned_onto_another_faster_than_it_drives_is_at_fault():
     slow = (4.670, 3.095, 0.889, 4.5, 1.8)
     swung = (3.281, 5.884, 1.851, 5.0, 1.8)
     motions = dict(motion_a_mps=(1.362, 1.694), motion_b_mps=(16.18, 19.06))
-    # its centre alone moved under 1 m farther than its speed covers: not placed
+    # its centre alone moved under 1 m farther than its speed covers: not placed; and
+    # the slow car, whose own motion closed on it at about 2 m/s, is not blamed either
     fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028)
-    assert (fault.at_fault, fault.reason) == (0, CLOSING)
+    assert fault.reason not in (PLACED, PLACED_RECENTLY) and fault.at_fault != 0
     fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028, turn_b_rad=0.59)
     assert (fault.at_fault, fault.reason) == (1, PLACED)
     # a turn a car can make (0.5 rad/s) does not place it
     fault = contact_fault(slow, swung, 2.16, 19.34, **motions, turn_a_rad=0.028, turn_b_rad=0.05)
     assert fault.reason != PLACED
+
+
+def test_a_car_whose_body_swings_onto_a_creeping_cars_front_is_at_fault():
+    """Found on a race circuit (seed 42, 443.8 s, sublane): a SUMO car turning inside a
+    junction moved its centre 0.3 m sideways and turned 4 degrees in a step, its rear
+    corner onto the front of a platoon car creeping on at 1.1 m/s. The platoon car's
+    own motion over the step did not bring it closer (0.108 m apart before, 0.109 m with
+    the other held where it was); it was blamed while the rules read the centres'
+    velocities towards the contact."""
+    creeping_was, creeping = car(276.191, 387.756, -4.179), car(276.102, 387.916, -4.175)
+    swinging_was, swinging = (
+        (272.253, 389.353, -3.892, 5.0, 1.8),
+        (272.485, 389.558, -3.82, 5.0, 1.8),
+    )
+    motion = [((b[0] - a[0]) / 0.1, (b[1] - a[1]) / 0.1) for a, b in
+              ((creeping_was, creeping), (swinging_was, swinging))]  # fmt: skip
+    turn = [b[2] - a[2] for a, b in ((creeping_was, creeping), (swinging_was, swinging))]
+    assert penetration_depths([creeping], [swinging])[0] > 0.0
+    assert penetration_depths([creeping_was], [swinging_was])[0] < 0.0
+    fault = contact_fault(creeping, swinging, 1.105, 7.05, -4.175, None, *motion, 0.1, *turn)
+    assert fault.at_fault == 1
+    swapped = contact_fault(swinging, creeping, 7.05, 1.105, None, -4.175, motion[1],
+                            motion[0], 0.1, turn[1], turn[0])  # fmt: skip
+    assert swapped.at_fault == 0
 
 
 def test_a_car_placed_less_than_a_reaction_time_before_the_contact_is_at_fault():
