@@ -61,6 +61,10 @@ class ActuationPort(Protocol):
 
     def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]: ...
 
+    def lane_room(
+        self, vehicle_ids: Sequence[str]
+    ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
+
 
 @dataclass(frozen=True)
 class ActuationBatch:
@@ -180,6 +184,11 @@ MAX_LANE_ANGLE_RAD = math.radians(60.0)
 SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
 #: Sublane actuation: a sidestep (`ActuationBatch.sidestep_m`) runs at most this fast [m/s].
 SIDESTEP_SPEED_MPS = 0.5
+#: Sublane actuation: this long [s] before the end of its lane (at its speed) a car's
+#: sideways move is bounded so that its body is inside the lane and the lanes after it
+#: when it gets there (`fit_at_lane_end`), moving back at up to `LANE_END_FIT_MPS`
+#: [m/s] (SUMO's default `maxSpeedLat`) or as fast as the controller asked.
+LANE_END_FIT_S, LANE_END_FIT_MPS = 3.0, 1.0
 
 
 @ACTUATORS.register("sublane")
@@ -220,6 +229,11 @@ class SublaneActuation:
         its corner in the member's way, which would otherwise wait for a car that
         waits for it.
 
+        Near the end of its lane (`LANE_END_FIT_S`) and inside a junction, the offset
+        is bounded so that the body is inside the lane and the lanes after it when the
+        car gets there (`fit_at_lane_end`): SUMO lets a car onto the next lane only so,
+        and holds it at the junction's exit otherwise, in the way of the cars beside.
+
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
         `SIDEWAYS_HORIZON_S` (every car driving on along its yaw) is not made (the
@@ -243,6 +257,7 @@ class SublaneActuation:
             side = batch.sidestep_m != 0.0
             step = batch.sidestep_m[side] / batch.dt_s
             lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
+        lateral = fit_at_lane_end(lateral, *sumo.lane_room(batch.vehicle_ids), speed, batch.dt_s)
         around = batch.surroundings
         if around is not None:
             blocked = sideways_conflicts(
@@ -253,3 +268,24 @@ class SublaneActuation:
             lateral[blocked] = 0.0
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)
         return ActuationResult(None, {})
+
+
+def fit_at_lane_end(
+    lateral_mps: FloatArray,
+    offset_m: FloatArray,
+    room_m: FloatArray,
+    to_end_m: FloatArray,
+    speed_mps: FloatArray,
+    dt_s: float,
+) -> FloatArray:
+    """The lateral speeds (left +) bounded so that a car reaching the end of its lane
+    within `LANE_END_FIT_S` at its speed gets there with its offset within `room_m` of
+    the lane's centre (held there once inside; moved back at up to `LANE_END_FIT_MPS`,
+    or the speed asked for if faster, from outside). A car standing at the end of its
+    lane counts as arriving within one step: it moves back into the room it needs to
+    go on."""
+    left_s = np.maximum(to_end_m / np.maximum(speed_mps, 1e-3), dt_s)
+    fitted = np.clip(lateral_mps, (-room_m - offset_m) / left_s, (room_m - offset_m) / left_s)
+    cap = np.maximum(np.abs(lateral_mps), LANE_END_FIT_MPS)
+    fitted = np.clip(fitted, -cap, cap)
+    return np.where(left_s <= LANE_END_FIT_S, fitted, lateral_mps)

@@ -181,6 +181,10 @@ class FakeBackend:
     def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]:
         return np.zeros(len(vehicle_ids), dtype=np.bool_)  # the fake has no junctions
 
+    def lane_room(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        unbounded = np.full(len(vehicle_ids), np.inf)  # the fake's lane has no end
+        return np.zeros(len(vehicle_ids)), unbounded, unbounded.copy()
+
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))
         self.vehicles.pop(vehicle_id)

@@ -104,6 +104,10 @@ class Backend(Protocol):
 
     def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]: ...
 
+    def lane_room(
+        self, vehicle_ids: Sequence[str]
+    ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
+
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""
         ...

@@ -194,6 +194,7 @@ class SumoBackend:
         self._min_gaps: dict[str, float] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
+        self._fit_widths: dict[str, float] = {}
         self._polylines: dict[str, tuple[list[float], list[float], list[float], float]] = {}
         self._lanes_behind: dict[str, list[str]] = {}
         """Sublane actuation: the lanes each platoon vehicle drove along, newest first (one
@@ -585,6 +586,42 @@ class SumoBackend:
             veh.setMaxSpeedLat(vid, magnitude)
             reach = max(LATERAL_REACH_M, magnitude * magnitude)
             veh.changeSublane(vid, reach if speed > 0 else -reach)
+
+    def lane_room(
+        self, vehicle_ids: Sequence[str]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Per vehicle: its lateral offset from its lane's centre (left +) [m]; how far
+        that offset may go either side with the body inside the lane and inside every
+        lane the lane leads to [m]; and the distance from its front bumper to the lane's
+        end [m]. SUMO lets a sublane car onto the next lane only with its body inside it:
+        a car that entered a junction 1.5 m beside its lane's centre stood at the
+        junction's exit for good (the `highway` game network, seed 44). A vehicle on no
+        lane gets 0, an unbounded room and distance."""
+        veh = self._api.vehicle
+        n = len(vehicle_ids)
+        offset, room, to_end = np.zeros(n), np.full(n, math.inf), np.full(n, math.inf)
+        for i, vid in enumerate(vehicle_ids):
+            lane_id = veh.getLaneID(vid)
+            if not lane_id:
+                continue
+            geom = self._geometry.get(vid)
+            width = geom[1] if geom is not None else float(veh.getWidth(vid))
+            offset[i] = veh.getLateralLanePosition(vid)
+            room[i] = max(0.5 * (self._fit_width(lane_id) - width), 0.0)
+            to_end[i] = self._lane_length(lane_id) - veh.getLanePosition(vid)
+        return offset, room, to_end
+
+    def _fit_width(self, lane_id: str) -> float:
+        """The narrowest of a lane and the lanes its links lead to (through and beyond a
+        junction's internal lanes) [m]."""
+        width = self._fit_widths.get(lane_id)
+        if width is None:
+            lane = self._api.lane
+            widths = [float(lane.getWidth(lane_id))]
+            for link in lane.getLinks(lane_id):
+                widths += [float(lane.getWidth(str(k))) for k in (link[0], link[4]) if k]
+            width = self._fit_widths[lane_id] = min(widths)
+        return width
 
     def _hand_over(self, vid: str) -> bool:
         """Should SUMO make this sublane-actuated vehicle's lane change now?

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from platoon_sumo import actuation
 from platoon_sumo.runner import load_plan, run
 from platoon_sumo.sumo import backend
 from tests.helpers import REPO, build_net
@@ -269,13 +270,63 @@ def test_a_shift_too_steep_to_steer_is_sumos_lane_change(
         on_ab = rows["lane_id"].str.startswith("AB_").to_numpy()
         lateral_speed = np.gradient(rows["y_m"].to_numpy(), rows["time_s"].to_numpy())
         sideways[vid] = float(np.abs(lateral_speed[on_ab]).max())
-    if not steep_to_sumo:  # the mechanism: the leader steered along the path
-        assert sideways["p.0"] > 2.0
+    if not steep_to_sumo:  # the mechanism: the leader steered along the path (bounded
+        # near the lane's end so that it fits the next lane, `fit_at_lane_end`)
+        assert sideways["p.0"] > 1.5
         return
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
     assert summary["platoon_vehicles"]["arrived"] == 3
     for vid in ("p.0", "p.1", "p.2"):
         assert sideways[vid] < 1.05, vid  # SUMO's lane change: 1 m/s sideways
+
+
+SPLIT_NODES = """<nodes>
+  <node id="W" x="0" y="0"/> <node id="A" x="300" y="0" type="priority"/>
+  <node id="B" x="600" y="0"/> <node id="C" x="560" y="-150"/>
+</nodes>"""
+SPLIT_EDGES = """<edges>
+  <edge id="WA" from="W" to="A" numLanes="2" speed="13.89"/>
+  <edge id="AB" from="A" to="B" numLanes="1" speed="13.89"/>
+  <edge id="AC" from="A" to="C" numLanes="1" speed="13.89"/>
+</edges>"""
+SPLIT_CONNECTIONS = """<connections>
+  <connection from="WA" to="AB" fromLane="1" toLane="0"/>
+  <connection from="WA" to="AC" fromLane="0" toLane="0"/>
+</connections>"""
+
+
+@pytest.mark.parametrize("fitted", [True, False])
+def test_a_car_reaching_a_split_beside_its_lane_goes_on(
+    write_scenario, tmp_path, monkeypatch, fitted
+):
+    """A road splits: its left lane goes straight on to a one-lane road, its right lane
+    turns off. A car on the left lane steered 1.5 m to the right (into the other lane)
+    when it reaches the split: SUMO lets it onto the one-lane road only with its body
+    inside that lane, and held it at the junction's exit for good (the `highway` game
+    network, seed 44: the cars turning off then ran into it). Near the lane's end its
+    sideways move is bounded so that it fits (`fit_at_lane_end`)."""
+    if not fitted:
+        monkeypatch.setattr(actuation, "LANE_END_FIT_S", 0.0)
+    net = build_net(tmp_path, SPLIT_NODES, SPLIT_EDGES, SPLIT_CONNECTIONS, "--no-turnarounds")
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 90.0, "seed": 1, "lateral_resolution_m": 0.8},
+        "network": {"net_file": str(net)},
+        "platoons": [{
+            "id": "p", "members": 1, "depart_s": 1.0, "actuation": "sublane",
+            "route": {"edges": ["WA", "AB"]},
+            "leader": {"type": "weave:Weave", "params": {"offset_m": -1.5, "from_s": 5.0}},
+        }],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    summary = json.loads((out / "summary.json").read_text())
+    traj = pd.read_csv(out / "trajectories.csv")
+    if not fitted:  # the mechanism: held at the junction's exit
+        assert summary["platoon_vehicles"]["arrived"] == 0
+        assert (traj.loc[traj["time_s"] > 80.0, "lane_id"].str.startswith(":")).all()
+        return
+    assert summary["platoon_vehicles"]["arrived"] == 1
+    on_ab = traj[traj["lane_id"] == "AB_0"]
+    assert len(on_ab) and on_ab["lateral_offset_m"].abs().max() < 0.8  # (3.2 - 1.8) / 2 + 0.1
 
 
 CROSS_NODES = """<nodes>
