@@ -9,10 +9,10 @@ The rules, in order (docs/metrics.md):
    contact, moved over the step farther than its reported speed covers, by more than
    `PLACED_M` and faster by more than `PLACED_MPS` (SUMO moved or turned it there; it
    did not drive there), while the other's did not, is at fault. So is, otherwise, a
-   vehicle SUMO placed so (by its centre's motion) at most `PLACED_REACTION_S` before
-   the contact within the other's reach (what the other covers in that time at its
-   speed then, plus half the two lengths), while the other was not: the other could
-   not react to it (a cut-in).
+   vehicle SUMO placed so (by its farthest corner's motion) at most
+   `PLACED_REACTION_S` before the contact within the other's reach (what the other
+   covers in that time at its speed then, plus half the two lengths), while the other
+   was not: the other could not react to it (a cut-in).
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
    drift, a cut-in) while the other does not is at fault.

@@ -384,6 +384,41 @@ def test_safety_check_blames_a_car_placed_just_ahead_of_a_member(
     assert hits == [("p.0", "h", at_fault, reason)]
 
 
+def test_safety_check_blames_a_car_whose_body_sumo_swung_into_a_members_path(write_scenario):
+    """Found on a race circuit (seed 44, 102.9 s): SUMO turned a car by 50 degrees in a
+    step, its centre 0.96 m beyond its speed, a corner 4 m; its side landed 0.18 m ahead
+    of a member creeping on, which touched it a step later. A placement is judged by
+    how far the body moved (its farthest corner), not only its centre. Here the car
+    stands and turns 60 degrees about its centre: the centre does not move at all."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)  # p.0's front bumper at x 100, 0.3 m a step
+    backend.vehicles["p.0"].speed_mps = 3.0
+    y0 = backend.vehicles["p.0"].y_m
+    centre, yaw = (100.2, y0 + 3.0), 0.0  # beside and ahead, 1.2 m apart
+    backend.add_human("h", centre[0] + 2.25, 0.0)
+    backend.vehicles["h"].y_m = centre[1]
+    check = SafetyCheck()
+    hits = []
+    for step in range(3):
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        ctx.events = []
+        check(ctx)
+        hits += [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+        if step == 0:
+            assert not hits
+        Sense()(ctx)  # the world the step begins with
+        backend.step()
+        if step == 0:  # SUMO turns h about its centre: its front-right corner 6 cm
+            yaw = -math.radians(60.0)  # ahead of p.0's front, which reaches it next step
+            h = backend.vehicles["h"]
+            h.yaw_rad = yaw
+            h.x_m, h.y_m = centre[0] + 2.25 * math.cos(yaw), centre[1] + 2.25 * math.sin(yaw)
+    assert hits == [("p.0", "h", "h", PLACED_RECENTLY)]
+
+
 def test_obstacles_ahead_finds_a_body_reaching_into_the_path_from_another_lane(write_scenario):
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1), backend)
