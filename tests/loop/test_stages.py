@@ -350,6 +350,17 @@ def test_safety_check_blames_the_car_whose_footprint_moved_into_the_other(write_
     assert hits == [("p.0", "h", "h", PLACED)]
 
 
+def contacts_after_step(ctx, check: SafetyCheck) -> list[tuple[str, str, str, str]]:
+    """Observe the world after a step and run the safety check on it: its contacts as
+    (vehicle, other, at fault, reason)."""
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    Footprints()(ctx)
+    ctx.events = []
+    check(ctx)
+    return [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+
+
 @pytest.mark.parametrize(
     ("steps_before", "at_fault", "reason"), [(1, "h", PLACED_RECENTLY), (12, "p.0", FRONT)]
 )
@@ -368,12 +379,7 @@ def test_safety_check_blames_a_car_placed_just_ahead_of_a_member(
     check = SafetyCheck()
     hits = []
     for step in range(steps_before + 2):
-        ObserveWorld()(ctx)
-        ReadBack()(ctx)
-        Footprints()(ctx)
-        ctx.events = []
-        check(ctx)
-        hits += [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+        hits += contacts_after_step(ctx, check)
         if step == steps_before + 1:  # p.0's front reaches h's rear
             break
         Sense()(ctx)  # the world the step begins with
@@ -401,12 +407,7 @@ def test_safety_check_blames_a_car_whose_body_sumo_swung_into_a_members_path(wri
     check = SafetyCheck()
     hits = []
     for step in range(3):
-        ObserveWorld()(ctx)
-        ReadBack()(ctx)
-        Footprints()(ctx)
-        ctx.events = []
-        check(ctx)
-        hits += [(e.vehicle_id, e.other_id, e.at_fault, e.detail) for e in ctx.events]
+        hits += contacts_after_step(ctx, check)
         if step == 0:
             assert not hits
         Sense()(ctx)  # the world the step begins with
