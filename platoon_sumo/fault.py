@@ -189,7 +189,8 @@ def contact_fault(
     into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
     if into[0] != into[1]:
         return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)
-    fronts = [struck_with_front(i) for i in (0, 1)]
+    # the other must not close on it too (a head-on sideswipe: closing faster decides)
+    fronts = [struck_with_front(i) and closing[1 - i] <= TIE_MPS for i in (0, 1)]
     if fronts[0] != fronts[1]:
         return Fault(0 if fronts[0] else 1, FRONT, cx, cy)
     if abs(closing[0] - closing[1]) > TIE_MPS and max(closing) > TIE_MPS:

@@ -238,6 +238,21 @@ def test_a_car_whose_body_swings_onto_a_creeping_cars_front_is_at_fault():
     assert swapped.at_fault == 0
 
 
+def test_a_car_sideswiping_an_oncoming_one_at_speed_is_at_fault():
+    """Found on a race circuit (seed 45, 157.4 s): a SUMO car at 55.5 m/s on a ramp
+    netconvert invented over the road came at a platoon car following at 5.3 m/s, 27
+    degrees off head-on, and swiped its front corner with its side just behind its own
+    front quarter. Both closed on the other (its own motion: 38 m/s, the platoon
+    car's 5 m/s); the platoon car's front was the only front at the contact, and rule
+    2 blamed it while the other closed on it too."""
+    was = [(267.323, 208.057, -2.606, 4.5, 1.8), (261.888, 202.431, 1.019, 5.0, 1.8)]
+    now = [(266.873, 207.78, -2.602, 4.5, 1.8), (264.444, 206.583, 1.019, 5.0, 1.8)]
+    motion = [((b[0] - a[0]) / 0.1, (b[1] - a[1]) / 0.1) for a, b in zip(was, now, strict=True)]
+    turn = [b[2] - a[2] for a, b in zip(was, now, strict=True)]
+    fault = contact_fault(*now, 5.28, 55.5, None, None, *motion, 0.1, *turn)
+    assert (fault.at_fault, fault.reason) == (1, CLOSING)
+
+
 def test_a_car_placed_less_than_a_reaction_time_before_the_contact_is_at_fault():
     """Found on a race circuit (seed 42, 118.6 s): SUMO placed a car 2.6 m in a step at
     4.1 m/s to 0.2 m beside a platoon car's front, which touched it a step later."""
