@@ -445,30 +445,3 @@ def test_opposite_left_turners_pass_each_other_inside_the_junction(
     assert inside["lateral_offset_m"].abs().max() < 0.35
     for vid in ("w.0", "w.1", "e.0", "e.1"):
         assert last.loc[vid, "lane_id"] in ("CN_1", "CS_1", "CN_0", "CS_0"), vid
-
-
-KINK_NODES = """<nodes>
-  <node id="A" x="0" y="0"/> <node id="B" x="100" y="0" type="priority"/>
-  <node id="C" x="75" y="43.3"/> <node id="D" x="200" y="0"/>
-</nodes>"""
-KINK_EDGES = """<edges>
-  <edge id="AB" from="A" to="B" numLanes="1" width="3.2"/>
-  <edge id="BC" from="B" to="C" numLanes="1" width="3.2"/>
-  <edge id="BD" from="B" to="D" numLanes="1" width="3.2"/>
-</edges>"""
-
-
-def test_a_lane_that_meets_the_next_at_an_angle_is_left_near_its_centre(tmp_path):
-    """SUMO moves a sublane car onto the next lane at its offset from the centre: where
-    the lanes meet at an angle (here without junction lanes: A-B turns 120 degrees into
-    B-C), a car d beside the centre lands 2 d sin(60 degrees) away. The room at A-B's
-    end is the offset that moves it 0.2 m (`EXIT_JUMP_M`); B-D goes straight on and
-    leaves the width's room."""
-    net = build_net(tmp_path, KINK_NODES, KINK_EDGES, None, "--no-internal-links")
-    sumo = backend.SumoBackend(backend.SumoOptions(str(net), 0.1, 1))
-    with sumo:
-        width, max_offset = sumo._exit_room("AB_0")
-        assert width == pytest.approx(3.2)
-        expected = backend.EXIT_JUMP_M / (2 * math.sin(math.pi / 3))
-        assert max_offset == pytest.approx(expected, rel=1e-4)  # (coordinates to 0.01 m)
-        assert sumo._exit_room("BD_0") == (pytest.approx(3.2), math.inf)
