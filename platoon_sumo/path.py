@@ -50,6 +50,30 @@ class LaneChange:
     """Where it begins, measured along the target lanes from their start."""
 
 
+@dataclass(frozen=True)
+class StraightCrossing:
+    """A straight-through connection of the route (netconvert's direction "s"): its
+    junction lanes and their chord, from the first lane's start to the last one's end,
+    as it advances along the direction of the lane before and moves sideways."""
+
+    lane_ids: tuple[str, ...]
+    advance_m: float
+    sideways_m: float
+    width_m: float
+    """The first junction lane's width."""
+
+    def is_jog(self, min_radius_m: float, body_width_m: float) -> bool:
+        """Does it move the lane sideways, out of the lane's room beside a body this
+        wide, within less advance than a vehicle turning no tighter than `min_radius_m`
+        needs for that shift (two opposite arcs: radius (a² + d²) / 4d)? SUMO moves its
+        cars across such a jog, front on the lane and back on the lane before; none
+        drives it as a bend."""
+        d, a = self.sideways_m, self.advance_m
+        if d <= 0.5 * max(self.width_m - body_width_m, 0.0):
+            return False
+        return a <= 0.0 or (a * a + d * d) / (4.0 * d) < min_radius_m
+
+
 @dataclass(frozen=True, eq=False)
 class RoutePath:
     """Centre-line of a route, resampled every `spacing_m`.
@@ -65,6 +89,17 @@ class RoutePath:
     lane_ids: tuple[str, ...]
     lane_width_m: FloatArray
     lane_changes: tuple[LaneChange, ...] = ()
+    straight_crossings: tuple[StraightCrossing, ...] = ()
+
+    def jog_lanes(self, min_radius_m: float, body_width_m: float) -> frozenset[str]:
+        """The junction lanes of the route's straight-through connections that are jogs
+        for a vehicle of this turning radius and width (``StraightCrossing.is_jog``)."""
+        return frozenset(
+            lane
+            for c in self.straight_crossings
+            if c.is_jog(min_radius_m, body_width_m)
+            for lane in c.lane_ids
+        )
 
     def next_lane_change(self, s_m: float) -> LaneChange | None:
         """The lane change under way at arc length `s_m`, or the next one (None: no more)."""
@@ -79,6 +114,7 @@ class RoutePath:
         lane_widths_m: Sequence[float],
         spacing_m: float,
         lane_changes: Sequence[LaneChange] = (),
+        straight_crossings: Sequence[StraightCrossing] = (),
     ) -> RoutePath:
         """Join per-lane polylines (each (k, 2)) into one path resampled at `spacing_m`."""
         if spacing_m <= 0:
@@ -115,6 +151,7 @@ class RoutePath:
             lane_ids=tuple(lane_ids),
             lane_width_m=np.asarray(lane_widths_m, dtype=np.float64)[lane_of_point],
             lane_changes=tuple(lane_changes),
+            straight_crossings=tuple(straight_crossings),
         )
 
     # Derived values are cached on first use (the path never changes; cached_property
@@ -407,14 +444,25 @@ class RoutePath:
             use_hint, hint, window, float(x_m), float(y_m),
         )  # fmt: skip
 
-    def curvature_1pm(self, smoothing_m: float) -> FloatArray:
-        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length."""
+    def curvature_1pm(
+        self, smoothing_m: float, left_out: frozenset[str] = frozenset()
+    ) -> FloatArray:
+        """Unsigned curvature at every point, averaged over `smoothing_m` of arc length.
+        Points on the lanes `left_out` and their corners with the lanes before and
+        after count 0 (see ``StraightCrossing.is_jog``)."""
         d = np.diff(self.xy_m, axis=0)
         heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
         seg = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
         kappa = np.zeros(len(self.xy_m))
         if len(heading) > 1:
             kappa[1:-1] = np.abs(np.diff(heading)) / (0.5 * (seg[1:] + seg[:-1]))
+        if left_out:
+            out = np.array([id_ in left_out for id_ in self.lane_ids], dtype=bool)
+            at = out[np.asarray(self.lane_index, dtype=np.intp)]
+            near = at.copy()  # a point's curvature uses its neighbours: theirs count too
+            near[1:] |= at[:-1]
+            near[:-1] |= at[1:]
+            kappa[near] = 0.0
         width = max(1, round(smoothing_m / self.spacing_m))
         kernel = np.ones(width) / width
         return np.asarray(np.convolve(kappa, kernel, mode="same"), dtype=np.float64)

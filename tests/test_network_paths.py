@@ -79,3 +79,48 @@ def test_routes_respect_vclass_and_reject_u_turns(tmp_path):
         net.check_edges(["BC", "CB"])
     with pytest.raises(RouteError, match="U-turn"):
         net.shortest_route("BC", "BA")  # only reachable by turning around at C
+
+
+def test_a_lane_jog_of_a_straight_connection_adds_no_curve_speed_where_sumo_moves_the_car():
+    """eclipse-sumo's highway network: at junction 1658939360 the motorway's lanes jog
+    4.8 m sideways within 0.3 m (netconvert's direction "s"). SUMO moves cars across at
+    the lane's speed, their bodies swung across the lane beside; route following read
+    it as a 1.9 m/s curve and platoons crawled through it, struck by cars passing on
+    that lane at 41 m/s. Where SUMO moves the car the jog adds no curve speed; planar
+    actuation, where our model drives the polyline, keeps it; real curves keep theirs."""
+    import math
+
+    from platoon_sumo.control.base import Observation
+    from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+    from platoon_sumo.sumo.backend import resolve_sumo_path
+    from platoon_sumo.vehicles import MotionLimits
+
+    net = Network(resolve_sumo_path("sumo:tools/game/highway/highway.net.xml"))
+    path = net.route_path(["191842213", "153177809", "153177820"], spacing_m=0.5)
+    limits = MotionLimits(16.7, 2.5, 7.5, 1.0, max_steer_rad=0.6, wheelbase_m=2.7)
+    radius = limits.wheelbase_m / math.tan(limits.max_steer_rad)
+    jogs = path.jog_lanes(radius, 1.8)
+    assert jogs == {":1658939360_0_0"}
+    (jog,) = (c for c in path.straight_crossings if c.lane_ids == (":1658939360_0_0",))
+    assert jog.sideways_m == pytest.approx(4.79, abs=0.01) and jog.advance_m < 0.5
+    # a wider lane's room, or a car able to turn that tightly: no jog
+    assert not jog.is_jog(radius, 1.8 - 2 * 4.8)
+    assert not jog.is_jog(1.0, 1.8)
+
+    def curve_speed(on_sumo_lanes: bool) -> np.ndarray:
+        ctrl = RouteFollowing(RouteFollowingParams())
+        x, y = path.xy_m[0]
+        obs = Observation(
+            time_s=0.0, dt_s=0.1, vehicle_id="c", role="leader", x_m=float(x), y_m=float(y),
+            yaw_rad=0.55, speed_mps=10.0, front_offset_m=3.6, length_m=4.5, width_m=1.8,
+            limits=limits, path=path, on_sumo_lanes=on_sumo_lanes,
+        )  # fmt: skip
+        ctrl.step(obs)
+        return ctrl._curve_speed_mps
+
+    at = np.isin(path.lane_index, [path.lane_ids.index(":1658939360_0_0")])
+    near = np.convolve(at, np.ones(13), mode="same") > 0  # the jog and 3 m around it
+    planar, sumo = curve_speed(False), curve_speed(True)
+    assert planar[near].min() < 2.5
+    assert sumo[near].min() == pytest.approx(path.speed_limit_mps[near].min())
+    assert np.array_equal(planar[~near], sumo[~near])  # elsewhere the same profile

@@ -45,6 +45,11 @@ class Observation:
     """Lateral offset (left +) of the lane the vehicle drives in from `path`: 0 when the
     controller steers along the path; with `actuation: lane` SUMO picks the lane among
     those that continue the route, so it may lie a lane or two beside the path."""
+    on_sumo_lanes: bool = False
+    """SUMO moves the vehicle along its lanes (`actuation: lane` and `sublane`): through a
+    junction it follows the internal lane, across a lane jog too (front on the lane, back
+    on the lane before). False: the controller steers the vehicle model along `path`
+    everywhere (`planar`)."""
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
     """The junction link at the end of the current lane with SUMO's right-of-way view."""

@@ -78,6 +78,7 @@ class RouteFollowing:
         p = self.params
         self._s_m = 0.0
         self._path: RoutePath | None = None
+        self._curve_key: tuple[bool, MotionLimits | None, float] = (False, None, 0.0)
         self._curve_speed_mps = np.zeros(0)
         self._curve_nan = False
         self._path_arrays: tuple[np.ndarray, ...] = ()
@@ -90,10 +91,24 @@ class RouteFollowing:
         self._s_m = 0.0
         self._path = None
 
-    def _prepare(self, path: RoutePath) -> None:
-        if path is not self._path:
-            self._path = path
-            kappa = path.curvature_1pm(self.params.curvature_smoothing_m)
+    def _prepare(self, path: RoutePath, obs: Observation) -> None:
+        """The path's curve speed limits. Where SUMO moves the vehicle along its lanes
+        (``Observation.on_sumo_lanes``), a lane jog of a straight-through connection
+        (``StraightCrossing.is_jog``: sideways out of the lane's room within less advance
+        than the vehicle's tightest turn needs) adds none: no car drives it as a bend;
+        SUMO moves its cars across at the lane's speed, their bodies swung across it
+        (front on the lane, back on the lane before), and a car crawling through at the
+        bend's curve speed stays swung across the lane beside for seconds (eclipse-sumo's
+        `highway` network: a motorway lane jogs 4.8 m sideways within 0.3 m)."""
+        key = (obs.on_sumo_lanes, obs.limits if obs.on_sumo_lanes else None, obs.width_m)
+        if path is not self._path or key != self._curve_key:
+            self._path, self._curve_key = path, key
+            left_out: frozenset[str] = frozenset()
+            if obs.on_sumo_lanes and path.straight_crossings:
+                lim = obs.limits
+                radius = lim.wheelbase_m / math.tan(lim.max_steer_rad)  # tightest turn
+                left_out = path.jog_lanes(radius, obs.width_m)
+            kappa = path.curvature_1pm(self.params.curvature_smoothing_m, left_out)
             curve = np.sqrt(self.params.max_lateral_accel_mps2 / np.maximum(kappa, 1e-9))
             limit = path.speed_limit_mps * self.params.speed_limit_factor
             self._curve_speed_mps = np.minimum(curve, limit)
@@ -117,8 +132,8 @@ class RouteFollowing:
         """``step`` with the vehicle-ahead speed limit given (inf: none; the laser
         follower's fallback steps blind to SUMO's leader)."""
         path = obs.path
-        if path is not self._path:
-            self._prepare(path)
+        if path is not self._path or obs.on_sumo_lanes != self._curve_key[0]:
+            self._prepare(path, obs)
         if obs.limits is not self._limits:
             self._set_limits(obs.limits)
         signal = obs.signal

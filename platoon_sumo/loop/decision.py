@@ -33,6 +33,7 @@ def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Obse
         limits=m.platoon.limits,
         path=m.path,
         lane_offset_m=0.0 if m.actuator.steers else kin[LATERAL],
+        on_sumo_lanes=m.actuator.sumo_drives,
         signal=m.signal,
         link_ahead=m.link_ahead,
         lane_change=m.lane_change,

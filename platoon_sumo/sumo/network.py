@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,7 +22,7 @@ from shapely.geometry.base import BaseGeometry
 from shapely.ops import unary_union
 
 from platoon_sumo.errors import did_you_mean
-from platoon_sumo.path import LaneChange, RoutePath
+from platoon_sumo.path import LaneChange, RoutePath, StraightCrossing
 
 
 class RouteError(ValueError):
@@ -41,6 +42,8 @@ class _Link:
     to_lane: int
     via_lane_ids: tuple[str, ...]
     turnaround: bool = False
+    straight: bool = False
+    """netconvert's direction "s": straight through the junction."""
 
 
 #: Parts of the ids netconvert gives edges it invents when guessing ramps.
@@ -253,6 +256,7 @@ class Network:
                     conn.getToLane().getIndex(),
                     tuple(vias),
                     conn.getDirection() == "t",
+                    conn.getDirection() == "s",
                 )
             )
         return tuple(links)
@@ -278,6 +282,7 @@ class Network:
         widths: list[float] = []
         entry_lane = first_lane if first_lane is not None else None
         changes: list[LaneChange] = []
+        crossings: list[StraightCrossing] = []
         offset_m = 0.0
         for i, edge_id in enumerate(edges):
             edge = self._normal_edges[edge_id]
@@ -307,6 +312,8 @@ class Network:
             speeds.append(min(lane_a.getSpeed(), lane_b.getSpeed()))
             widths.append(min(lane_a.getWidth(), lane_b.getWidth()))
             if i < len(links):
+                if links[i].straight and links[i].via_lane_ids:
+                    crossings.append(self._straight_crossing(lane_b, links[i].via_lane_ids))
                 for via_id in links[i].via_lane_ids:
                     via = self._net.getLane(via_id)
                     pieces.append(np.asarray(via.getShape()))
@@ -315,7 +322,25 @@ class Network:
                     speeds.append(via.getSpeed())
                     widths.append(via.getWidth())
                 entry_lane = links[i].to_lane
-        return RoutePath.from_pieces(pieces, lane_ids, speeds, widths, spacing_m, changes)
+        return RoutePath.from_pieces(
+            pieces, lane_ids, speeds, widths, spacing_m, changes, tuple(crossings)
+        )
+
+    def _straight_crossing(self, lane: Any, via_lane_ids: tuple[str, ...]) -> StraightCrossing:
+        """A straight-through connection's junction lanes from `lane` (sumolib's), with
+        how far their chord advances along the direction `lane` ends in and how far it
+        moves sideways."""
+        shape = np.asarray(lane.getShape(), dtype=np.float64)
+        ux, uy = shape[-1] - shape[-2]
+        norm = math.hypot(ux, uy) or 1.0
+        ux, uy = ux / norm, uy / norm
+        first = self._net.getLane(via_lane_ids[0])
+        last = self._net.getLane(via_lane_ids[-1])
+        (ax, ay), (bx, by) = first.getShape()[0], last.getShape()[-1]
+        dx, dy = bx - ax, by - ay
+        return StraightCrossing(
+            via_lane_ids, dx * ux + dy * uy, abs(ux * dy - uy * dx), float(first.getWidth())
+        )
 
     def _choose_links(
         self, edges: Sequence[str], first_lane: int | None, vclass: str

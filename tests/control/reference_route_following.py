@@ -117,10 +117,15 @@ class ReferenceRouteFollowing:
         self._s_m = 0.0
         self._path = None
 
-    def _prepare(self, path: RoutePath) -> None:
-        if path is not self._path:
-            self._path = path
-            kappa = path.curvature_1pm(self.params.curvature_smoothing_m)
+    def _prepare(self, path: RoutePath, obs: Observation) -> None:
+        key = (obs.on_sumo_lanes, obs.limits, obs.width_m)
+        if path is not self._path or key != getattr(self, "_key", None):
+            self._path, self._key = path, key
+            left_out: frozenset[str] = frozenset()
+            if obs.on_sumo_lanes:  # lane jogs of straight-through connections: no bend
+                radius = obs.limits.wheelbase_m / math.tan(obs.limits.max_steer_rad)
+                left_out = path.jog_lanes(radius, obs.width_m)
+            kappa = path.curvature_1pm(self.params.curvature_smoothing_m, left_out)
             curve = np.sqrt(self.params.max_lateral_accel_mps2 / np.maximum(kappa, 1e-9))
             limit = path.speed_limit_mps * self.params.speed_limit_factor
             self._curve_speed_mps = np.minimum(curve, limit)
@@ -132,7 +137,7 @@ class ReferenceRouteFollowing:
     def step(self, observation: Observation) -> Command:
         obs, p = observation, self.params
         path = obs.path
-        self._prepare(path)
+        self._prepare(path, obs)
         lookahead = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
         self._s_m = project_s(path, obs.x_m, obs.y_m, self._s_m, max(20.0, 3 * lookahead))
         speed = min(self._profile_speed(obs), self._signal_speed(obs), self._following_speed(obs))
