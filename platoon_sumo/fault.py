@@ -21,14 +21,14 @@ The rules, in order (docs/metrics.md):
    (a rear-end, a car running into a crossing car's side).
 3. **Closing faster.** Otherwise, the vehicle that closes on the other faster, by more
    than `TIE_MPS`, and at more than `TIE_MPS`.
+4. **Swept into a standing vehicle.** Otherwise, when one vehicle moves (at least
+   `TIE_MPS`) and the other stands, the mover (its body swept into the other, e.g. its
+   rear swinging out in a turn); else nobody (``None``).
 
 A vehicle closes on the other at the rate its own motion over the step, with the other
 held at its footprint of the step's start, shrank the gap between them (footprints
 apart) or deepened their overlap: a rigid body's motion, so a rear swinging into the
 other closes on it and a front that only crept beside a swinging body does not.
-4. **Swept into a standing vehicle.** Otherwise, when one vehicle moves (at least
-   `TIE_MPS`) and the other stands, the mover (its body swept into the other, e.g. its
-   rear swinging out in a turn); else nobody (``None``).
 
 A vehicle slower than `TIE_MPS` (its measured motion, else its reported speed) is never
 at fault by rules 1-4: SUMO reports a stopped car's speed as rounding noise (1e-15
