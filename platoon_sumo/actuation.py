@@ -185,9 +185,8 @@ SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
 #: Sublane actuation: a sidestep (`ActuationBatch.sidestep_m`) runs at most this fast [m/s].
 SIDESTEP_SPEED_MPS = 0.5
 #: Sublane actuation: this long [s] before the end of its lane (at its speed) a car's
-#: sideways move is bounded so that it gets there within the room `lane_room` gives
-#: (body inside the lane and the lanes after it, no jump onto the next lane;
-#: `fit_at_lane_end`), moving back at up to `LANE_END_FIT_MPS`
+#: sideways move is bounded so that its body is inside the lane and the lanes after it
+#: when it gets there (`fit_at_lane_end`), moving back at up to `LANE_END_FIT_MPS`
 #: [m/s] (SUMO's default `maxSpeedLat`) or as fast as the controller asked.
 LANE_END_FIT_S, LANE_END_FIT_MPS = 3.0, 1.0
 
@@ -232,10 +231,8 @@ class SublaneActuation:
 
         Near the end of its lane (`LANE_END_FIT_S`) and inside a junction, the offset
         is bounded so that the body is inside the lane and the lanes after it when the
-        car gets there, and near enough the centre that SUMO does not move it onto a
-        next lane that starts at an angle (`fit_at_lane_end`, `lane_room`): SUMO lets a
-        car onto the next lane only inside it, and holds it at the junction's exit
-        otherwise, in the way of the cars beside.
+        car gets there (`fit_at_lane_end`): SUMO lets a car onto the next lane only so,
+        and holds it at the junction's exit otherwise, in the way of the cars beside.
 
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within

@@ -65,9 +65,6 @@ HANDED_OVER_LATERAL_MPS = 1.0
 #: A car whose lane change SUMO made is steered by us again within this distance of
 #: its new lane's centre [m].
 HANDED_BACK_WITHIN_M = 0.3
-#: Sublane actuation: a car leaves its lane at an offset that moves it at most this far
-#: onto the next lane [m] (`SumoBackend._exit_room`).
-EXIT_JUMP_M = 0.2
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 #: Lane actuation: a controller's lane request (a change, or keeping the lane against
@@ -197,7 +194,7 @@ class SumoBackend:
         self._min_gaps: dict[str, float] = {}
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
-        self._exit_rooms: dict[str, tuple[float, float]] = {}
+        self._fit_widths: dict[str, float] = {}
         self._lane_signals: dict[str, tuple[str, str, int]] = {}
         """Per vehicle: its lane and the light (id, link index) at that lane's end."""
         self._tls_states: dict[str, str] = {}
@@ -597,9 +594,12 @@ class SumoBackend:
         self, vehicle_ids: Sequence[str]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Per vehicle: its lateral offset from its lane's centre (left +) [m]; how far
-        that offset may be from the centre where the lane ends (`_exit_room`) [m]; and
-        the distance from its front bumper to the lane's end [m]. A vehicle on no lane
-        gets 0, an unbounded room and distance."""
+        that offset may go either side with the body inside the lane and inside every
+        lane the lane leads to [m]; and the distance from its front bumper to the lane's
+        end [m]. SUMO lets a sublane car onto the next lane only with its body inside it:
+        a car that entered a junction 1.5 m beside its lane's centre stood at the
+        junction's exit for good (the `highway` game network, seed 44). A vehicle on no
+        lane gets 0, an unbounded room and distance."""
         veh = self._api.vehicle
         n = len(vehicle_ids)
         offset, room, to_end = np.zeros(n), np.full(n, math.inf), np.full(n, math.inf)
@@ -609,48 +609,22 @@ class SumoBackend:
                 continue
             geom = self._geometry.get(vid)
             width = geom[1] if geom is not None else float(veh.getWidth(vid))
-            fit_width, max_offset = self._exit_room(lane_id)
             offset[i] = veh.getLateralLanePosition(vid)
-            room[i] = min(max(0.5 * (fit_width - width), 0.0), max_offset)
+            room[i] = max(0.5 * (self._fit_width(lane_id) - width), 0.0)
             to_end[i] = self._lane_length(lane_id) - veh.getLanePosition(vid)
         return offset, room, to_end
 
-    def _exit_room(self, lane_id: str) -> tuple[float, float]:
-        """(narrowest width of the lane and the lanes its links lead to, through and
-        beyond a junction's internal lanes [m]; the largest offset from the centre at
-        which leaving the lane moves a car less than `EXIT_JUMP_M` [m]).
-
-        SUMO moves a sublane car onto the next lane at its offset from the centre, and
-        only with its body inside that lane: a car that entered a split 1.5 m beside its
-        lane stood at the junction's exit for good (the `highway` game network, seed
-        44). Where the next lane starts at an angle to the lane's end, the car lands
-        2 offset sin(angle / 2) from where it was: 3.4 m for 1.8 m off a junction lane
-        of the race circuit that meets the next lane at 141 degrees (seed 45). The
-        angle is a junction lane's only (its one link is the car's way on)."""
-        found = self._exit_rooms.get(lane_id)
-        if found is None:
+    def _fit_width(self, lane_id: str) -> float:
+        """The narrowest of a lane and the lanes its links lead to (through and beyond a
+        junction's internal lanes) [m]."""
+        width = self._fit_widths.get(lane_id)
+        if width is None:
             lane = self._api.lane
             widths = [float(lane.getWidth(lane_id))]
-            max_offset = math.inf
-            # a junction's lane has one link, the one the car takes; an edge's lane has
-            # one per turn (bounded by every turn's angle, the lanes of `DRT` with a
-            # 32-degree turn kept cars within 0.37 m of their centre, and the city
-            # scenario had two contacts, SUMO cars into a follower standing across two
-            # lanes; not traced further)
-            xs, ys, _, _ = self._lane_polyline(lane_id)
-            internal = lane_id.startswith(":") and len(xs) > 1
-            end = math.atan2(ys[-1] - ys[-2], xs[-1] - xs[-2]) if internal else None
             for link in lane.getLinks(lane_id):
-                nxt = [str(k) for k in (link[4], link[0]) if k]
-                widths += [float(lane.getWidth(k)) for k in nxt]
-                nx, ny, _, _ = self._lane_polyline(nxt[0])
-                if end is None or len(nx) < 2:
-                    continue
-                turn = abs(math.remainder(math.atan2(ny[1] - ny[0], nx[1] - nx[0]) - end, math.tau))
-                if turn > 1e-6:
-                    max_offset = min(max_offset, EXIT_JUMP_M / (2.0 * math.sin(0.5 * turn)))
-            found = self._exit_rooms[lane_id] = (min(widths), max_offset)
-        return found
+                widths += [float(lane.getWidth(str(k))) for k in (link[0], link[4]) if k]
+            width = self._fit_widths[lane_id] = min(widths)
+        return width
 
     def _hand_over(self, vid: str) -> bool:
         """Should SUMO make this sublane-actuated vehicle's lane change now?
