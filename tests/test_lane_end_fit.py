@@ -22,10 +22,8 @@ cars = st.tuples(
 
 
 def fit(lateral, offset, room, to_end, speed):
-    out = fit_at_lane_end(
-        *(np.array([v], dtype=np.float64) for v in (lateral, offset, room, to_end, speed)), DT
-    )
-    return float(out[0])
+    a = [np.array([v], dtype=np.float64) for v in (lateral, offset, room, to_end, speed)]
+    return float(fit_at_lane_end(a[0], a[1], a[2], a[3], a[4], DT)[0])
 
 
 @settings(max_examples=300, deadline=None)
