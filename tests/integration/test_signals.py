@@ -56,6 +56,12 @@ def start(tmp_path: Path, data: dict[str, Any]) -> tuple[subprocess.Popen[str], 
     return child, out
 
 
+def cpu_seconds(pid: int) -> float:
+    """CPU time (user + system) the process has used so far [s] (Linux: /proc)."""
+    fields = (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def wait_for(condition: Any, timeout_s: float = 60.0) -> None:
     deadline = time.monotonic() + timeout_s
     while not condition():
@@ -67,13 +73,16 @@ def wait_for(condition: Any, timeout_s: float = 60.0) -> None:
     (signal.SIGTERM, 143, "SIGTERM"), (signal.SIGINT, 130, "Ctrl-C"),
 ])  # fmt: skip
 @pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc for the run's CPU time")
 def test_a_signal_mid_run_keeps_the_rows_and_marks_the_run_interrupted(
     tmp_path, signum, code, name
 ):
     child, out = start(tmp_path, long_run())
-    # the progress line shows the loop is stepping (it prints every tenth of the run)
-    wait_for(lambda: (out / "trajectories.csv").is_file())
-    time.sleep(1.5)
+    wait_for(lambda: (out / "trajectories.csv").is_file())  # the loop is about to step
+    # 1.5 s of the run's own CPU, not of the wall clock: on a busy machine 1.5 s of wall
+    # time once left it no step done (0 rows)
+    started = cpu_seconds(child.pid)
+    wait_for(lambda: cpu_seconds(child.pid) - started >= 1.5)
     child.send_signal(signum)
     _, err = child.communicate(timeout=60)
     assert child.returncode == code, err
