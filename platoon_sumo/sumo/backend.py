@@ -202,6 +202,9 @@ class SumoBackend:
         self._lanes_behind: dict[str, list[str]] = {}
         """Sublane actuation: the lanes each platoon vehicle drove along, newest first (one
         per edge: a lane change replaces the lane of the edge)."""
+        self._fronts: dict[str, tuple[str, float]] = {}
+        """Sublane actuation: this step's lane and front bumper position on it (SUMO's
+        lane position), read by `body_directions` for `in_junctions` and `lane_room`."""
         self._lane_edges: dict[str, str] = {}
         self._handed_over: set[str] = set()
         self._slow_since: dict[str, float] = {}
@@ -604,14 +607,17 @@ class SumoBackend:
         n = len(vehicle_ids)
         offset, room, to_end = np.zeros(n), np.full(n, math.inf), np.full(n, math.inf)
         for i, vid in enumerate(vehicle_ids):
-            lane_id = veh.getLaneID(vid)
+            known = self._fronts.get(vid)  # read by `body_directions` this step
+            lane_id, front = known if known is not None else (veh.getLaneID(vid), None)
             if not lane_id:
                 continue
             geom = self._geometry.get(vid)
             width = geom[1] if geom is not None else float(veh.getWidth(vid))
             offset[i] = veh.getLateralLanePosition(vid)
             room[i] = max(0.5 * (self._fit_width(lane_id) - width), 0.0)
-            to_end[i] = self._lane_length(lane_id) - veh.getLanePosition(vid)
+            if front is None:
+                front = veh.getLanePosition(vid)
+            to_end[i] = self._lane_length(lane_id) - front
         return offset, room, to_end
 
     def _fit_width(self, lane_id: str) -> float:
@@ -723,6 +729,7 @@ class SumoBackend:
         for i, (vid, ahead) in enumerate(zip(vehicle_ids, ahead_m.tolist(), strict=True)):
             lane_id = veh.getLaneID(vid)
             if not lane_id:
+                self._fronts.pop(vid, None)
                 now[i] = later[i] = math.radians(90.0 - veh.getAngle(vid))
                 continue
             lanes = self._lanes_behind.setdefault(vid, [])
@@ -735,6 +742,7 @@ class SumoBackend:
             geom = self._geometry.get(vid)
             length = geom[0] if geom is not None else veh.getLength(vid)
             front = veh.getLanePosition(vid)
+            self._fronts[vid] = (lane_id, front)
             now[i] = self._chord(lanes, front, length)
             later[i] = self._chord(lanes, front + ahead, length)
         return now, later
@@ -742,7 +750,7 @@ class SumoBackend:
     def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]:
         """Has each vehicle any part of its body on a junction's internal lane (its front
         on one, or its back still on one of the lanes `body_directions` saw it drive
-        along)? Call after `body_directions` in the same step."""
+        along)? Call after `body_directions` in the same step (its reads are used)."""
         veh = self._api.vehicle
         out = np.zeros(len(vehicle_ids), dtype=np.bool_)
         for i, vid in enumerate(vehicle_ids):
@@ -750,7 +758,9 @@ class SumoBackend:
             if not lanes:
                 continue
             geom = self._geometry.get(vid)
-            back = veh.getLanePosition(vid) - (geom[0] if geom is not None else veh.getLength(vid))
+            known = self._fronts.get(vid)
+            front = known[1] if known is not None else veh.getLanePosition(vid)
+            back = front - (geom[0] if geom is not None else veh.getLength(vid))
             k = 0
             hit = lanes[0].startswith(":")
             while not hit and back < 0.0 and k + 1 < len(lanes):
@@ -813,6 +823,7 @@ class SumoBackend:
         self._geometry.pop(vid, None)
         self._min_gaps.pop(vid, None)
         self._lanes_behind.pop(vid, None)
+        self._fronts.pop(vid, None)
         self._handed_over.discard(vid)
         self._slow_since.pop(vid, None)
         self._kept_on.pop(vid, None)
