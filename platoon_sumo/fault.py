@@ -143,7 +143,12 @@ def contact_fault(
             strict=True,
         )
     ]
-    speeds = [math.hypot(*v) for v in velocity]
+    # a vehicle's speed: its measured motion's, else the speed it reports (exactly: the
+    # length of its velocity along the yaw rounds 0.1 m/s to 0.09999999999999999)
+    speeds = [
+        math.hypot(*v) if m is not None else abs(r)
+        for v, m, r in zip(velocity, (motion_a_mps, motion_b_mps), reported, strict=True)
+    ]
     turns = (float(turn_a_rad), float(turn_b_rad))
 
     def sideways(i: int) -> float:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from platoon_sumo.fault import (
@@ -116,6 +116,7 @@ def test_attribution_is_invariant_to_naming_order_and_rigid_motion(scene, dx, dy
 
 @settings(max_examples=300, deadline=None)
 @given(scene=scenes, creep=st.sampled_from([0.0, 1e-15, 4.2e-15, 1e-6, 0.05, 0.099]))
+@example(scene=(0.0, 0.0, 1.9, 0.0, 0.1, None), creep=0.0)  # 0.1 m/s along yaw 1.9 rad
 def test_a_standing_vehicle_is_never_at_fault(scene, creep):
     """Standing includes SUMO's stopped speeds (rounding noise, 1e-15 m/s) and a creep
     below 0.1 m/s; and when the other moves, it is the one at fault."""
