@@ -38,13 +38,14 @@ def oracle(samples, sample_s, half_width, rects, self_index):
     return found
 
 
-def kernel(path, half_width, rects, self_index):
+def kernel(path, half_width, rects, self_index, owners=None):
     """The kernel on one path, the corridor from its start to its end."""
     outputs = empty_outputs(64)
     member = np.array([[0, 0.0, 0.0, 1e9, path.spacing_m, 1, half_width]])
+    owners = np.arange(len(rects)) if owners is None else np.asarray(owners)
     count = corridor_intrusions(
         path.xy_m, path.left_normals, np.array([0, len(path.xy_m)]), member,
-        np.array([self_index]), rects, *outputs,
+        np.array([self_index]), rects, owners, *outputs,
     )  # fmt: skip
     _, rect, gap, _ = (a[:count] for a in outputs)
     return dict(zip(rect.tolist(), gap.tolist(), strict=True))
@@ -67,6 +68,8 @@ def test_a_corner_reaching_into_the_lane_is_found_at_its_distance():
     # a car beside the lane, 12-16.5 m ahead, its side 0.3 m into the 2.2 m corridor
     rects = np.array([[-2.0, 0.0, 0.0, 4.5, 1.8], [14.25, 1.1 + 0.9 - 0.3, 0.0, 4.5, 1.8]])
     assert kernel(path, 1.1, rects, 0) == {1: 12.0}
+    # rectangles belong to vehicles: vehicle 0's (here the second) are skipped
+    assert kernel(path, 1.1, rects, 0, owners=[1, 0]) == {0: 0.0}
     # 0.3 m further out it does not touch
     rects[1, 1] += 0.31
     assert kernel(path, 1.1, rects, 0) == {}

@@ -18,6 +18,7 @@ def corridor_intrusions(
     members: np.ndarray,
     selves: np.ndarray,
     rects: np.ndarray,
+    owners: np.ndarray,
     out_member: np.ndarray,
     out_rect: np.ndarray,
     out_gap: np.ndarray,
@@ -33,9 +34,10 @@ def corridor_intrusions(
     path spacing, stride, half width): its corridor is a chain of slices between every
     `stride`-th path point from the front bumper on, shifted by the offset, `2 * half
     width` wide; the gap is the distance of the first slice the rectangle overlaps
-    (short by less than a slice). `selves[j]` is the vehicle's own rectangle (skipped;
-    -1: none). Rectangles are rows (cx, cy, yaw, length, width). `out_along` is the
-    cosine between the rectangle's yaw and that slice's direction."""
+    (short by less than a slice). Rectangles are rows (cx, cy, yaw, length, width);
+    `owners[k]` is the vehicle rectangle k belongs to (a vehicle may have several), and
+    `selves[j]` vehicle j's own (its rectangles are skipped; -1: none). `out_along` is
+    the cosine between the rectangle's yaw and that slice's direction."""
     count = 0
     capacity = out_member.shape[0]
     n_rects = rects.shape[0]
@@ -93,7 +95,7 @@ def corridor_intrusions(
         b = np.searchsorted(sorted_x, mx + reach + largest, side="right")
         for q in range(a, b):
             k = order[q]
-            if k == selves[j]:
+            if owners[k] == selves[j]:
                 continue
             hl, hwk = 0.5 * rects[k, 3], 0.5 * rects[k, 4]
             size = math.hypot(hl, hwk)

@@ -16,9 +16,11 @@ from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, e
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.path import RoutePath
+from platoon_sumo.sumo.network import Network
 from platoon_sumo.world import VehicleAhead
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
 
 #: The corridor is the vehicle's width plus this on each side [m].
 CORRIDOR_MARGIN_M = 0.2
@@ -34,6 +36,10 @@ LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
 #: either of them inside a junction, is passed by a sidestep when the lane has room
 #: (`sidestep_clearing`).
 STANDING_MPS = 0.3
+#: A car inside a junction slowing down harder than this [m/s²] is seen where it will
+#: stop too: more than a SUMO driver's dawdling (Krauss: up to sigma x accel, 1.3 m/s²
+#: for passenger cars), so it is braking for something.
+BRAKING_MPS2 = 2.0
 #: The sidestep clears the corridor by this much [m] and keeps the body this far
 #: inside the lane's edges [m]; the outline is sampled every `OUTLINE_STEP_M`.
 SIDESTEP_EXTRA_M, LANE_EDGE_CLEARANCE_M, OUTLINE_STEP_M = 0.05, 0.1, 0.25
@@ -47,7 +53,10 @@ class ObstaclesAhead:
     along the corridor (0 when oncoming), unless it is crossing and will have left
     (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
     unless SUMO drives the member and the leader's body reaches into the corridor
-    nearer than SUMO's gap says.
+    nearer than SUMO's gap says. A car braking inside a junction (`stopping_footprints`)
+    is also where it will stand: DRT, seed 42, 341.0 s, a car turning left across the
+    other direction stopped with its corner in a follower's path, which saw it 3.7 m
+    ahead at 11 m/s (SUMO's lanes do not conflict there).
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -100,7 +109,11 @@ class ObstaclesAhead:
                 starts,
             )
         selves = np.array([world.index[m.id] for m in members], dtype=np.int64)
-        args = (*self._stacked, table, selves, np.ascontiguousarray(rects))
+        network = ctx.run.plan.network
+        stops, stopping = stopping_footprints(ctx, network)
+        owners = np.concatenate([np.arange(len(rects)), stopping])
+        every = np.concatenate([rects, stops]) if len(stops) else rects
+        args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
         count = corridor_intrusions(*args, *self._outputs)
         if count > len(self._outputs[0]):
             self._outputs = empty_outputs(2 * count)
@@ -108,15 +121,17 @@ class ObstaclesAhead:
         if not count:
             return
         who, rect, gap, along = (a[:count] for a in self._outputs)
-        network = ctx.run.plan.network
         for k in np.lexsort((rect, gap, who)).tolist():  # per member, nearest first
             j = int(who[k])
             m = members[j]
             if m.obstacle_ahead is not None:
                 continue
-            i = int(rect[k])
+            i = int(owners[rect[k]])
+            will_stop = int(rect[k]) >= len(rects)  # where a braking car will stand
             other = world.ids[i]
             leader = m.vehicle_ahead
+            if leader is not None and leader.vehicle_id == other and will_stop:
+                continue  # SUMO's leader: followed at its gap and speed
             if leader is not None and leader.vehicle_id == other:
                 # SUMO's leader, whose gap along the lanes is the exact one; unless SUMO
                 # drives the member (its safe speed keeps that gap) and the leader's body
@@ -136,12 +151,12 @@ class ObstaclesAhead:
             if not network.same_level(world.lane_ids[selves[j]], world.lane_ids[i]):
                 continue
             cos = float(along[k])
-            if crosses_before_arrival(
+            if not will_stop and crosses_before_arrival(
                 float(gap[k]), float(speed[j]), 2.0 * constants[j, 4], float(world.speed_mps[i]),
                 cos, float(world.length_m[i]), float(world.width_m[i]),
             ):  # fmt: skip
                 continue
-            speed_along = max(float(world.speed_mps[i]) * cos, 0.0)
+            speed_along = 0.0 if will_stop else max(float(world.speed_mps[i]) * cos, 0.0)
             m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
             lanes = (world.lane_ids[selves[j]], world.lane_ids[i])
             if world.speed_mps[i] < STANDING_MPS and any(x.startswith(":") for x in lanes):
@@ -149,6 +164,42 @@ class ObstaclesAhead:
                     m.path, float(table[j, 1]), float(table[j, 2]), float(table[j, 3]),
                     float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
                 )  # fmt: skip
+
+
+def stopping_footprints(ctx: StepContext, network: Network) -> tuple[FloatArray, IntArray]:
+    """Footprints where the cars braking inside a junction will stand, and whose they
+    are: each moved along its junction lane (up to its end) by its stopping distance at
+    the deceleration it showed over the step, if harder than `BRAKING_MPS2`. A car that
+    will stop in a member's path must be seen before it gets there: a car at 11 m/s
+    needs about 13 m to stop comfortably, and SUMO's drivers brake late."""
+    world, before = ctx.world, ctx.sensed_world
+    none = (np.empty((0, 5)), np.empty(0, dtype=np.int64))
+    if before is None or world.time_s <= before.time_s:
+        return none
+    dt_s = world.time_s - before.time_s
+    rows, owners = [], []
+    for i, lane in enumerate(world.lane_ids):
+        if lane[:1] != ":" or world.speed_mps[i] < STANDING_MPS:
+            continue
+        j = before.index.get(world.ids[i])
+        if j is None:
+            continue
+        speed = float(world.speed_mps[i])
+        decel = (float(before.speed_mps[j]) - speed) / dt_s
+        if decel <= BRAKING_MPS2:
+            continue
+        x, y = float(world.front_x_m[i]), float(world.front_y_m[i])
+        stop = network.lane_point_ahead(lane, x, y, speed * speed / (2.0 * decel))
+        if stop is None:
+            continue
+        fx, fy, yaw = stop
+        half = 0.5 * float(world.length_m[i])
+        rows.append((fx - half * math.cos(yaw), fy - half * math.sin(yaw), yaw,
+                     float(world.length_m[i]), float(world.width_m[i])))  # fmt: skip
+        owners.append(i)
+    if not rows:
+        return none
+    return np.array(rows), np.array(owners, dtype=np.int64)
 
 
 def crosses_before_arrival(

@@ -83,24 +83,64 @@ class Network:
         """(k, 2) centre-line of a lane, internal junction lanes included."""
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
 
-    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
-        """(direction [rad], position [m]) at the point of the lane's centre line nearest
-        to (x, y): the direction of its segment, and its distance along the lane from
-        the start (0 to the lane's length); None for an unknown lane."""
+    @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
+    def _lane_segments(
+        self, lane_id: str
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """(starts, directions, squared lengths, lengths) of a lane's centre-line
+        segments; None for an unknown lane or one of fewer than two points."""
         try:
             shape = self.lane_shape(lane_id)
         except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
             return None
         if len(shape) < 2:
             return None
-        a, d = shape[:-1], np.diff(shape, axis=0)
+        d = np.diff(shape, axis=0)
         length2 = np.maximum((d * d).sum(axis=1), 1e-12)
+        return shape[:-1], d, length2, np.sqrt(length2)
+
+    def _nearest_on_lane(self, lane_id: str, x_m: float, y_m: float) -> tuple[int, float] | None:
+        """(segment, fraction along it) of the lane's centre-line point nearest (x, y)."""
+        segments = self._lane_segments(lane_id)
+        if segments is None:
+            return None
+        a, d, length2, _ = segments
         t = np.clip(((np.array([x_m, y_m]) - a) * d).sum(axis=1) / length2, 0.0, 1.0)
         nearest = a + t[:, None] * d
         k = int(np.argmin(np.hypot(*(nearest - (x_m, y_m)).T)))
-        seg = np.sqrt(length2)
-        position = float(seg[:k].sum() + t[k] * seg[k])
-        return float(np.arctan2(d[k, 1], d[k, 0])), position
+        return k, float(t[k])
+
+    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
+        """(direction [rad], position [m]) at the point of the lane's centre line nearest
+        to (x, y): the direction of its segment, and its distance along the lane from
+        the start (0 to the lane's length); None for an unknown lane."""
+        found = self._nearest_on_lane(lane_id, x_m, y_m)
+        segments = self._lane_segments(lane_id)
+        if found is None or segments is None:
+            return None
+        (k, t), (_, d, _, seg) = found, segments
+        return float(np.arctan2(d[k, 1], d[k, 0])), float(seg[:k].sum() + t * seg[k])
+
+    def lane_point_ahead(
+        self, lane_id: str, x_m: float, y_m: float, ahead_m: float
+    ) -> tuple[float, float, float] | None:
+        """(x, y, direction [rad]) of the lane's centre line `ahead_m` further along it
+        than its point nearest to (x, y), at most its end; None for an unknown lane."""
+        found = self._nearest_on_lane(lane_id, x_m, y_m)
+        segments = self._lane_segments(lane_id)
+        if found is None or segments is None:
+            return None
+        (k, t), (a, d, _, seg) = found, segments
+        left = ahead_m + t * seg[k]  # from the start of segment k
+        while left > seg[k] and k + 1 < len(seg):
+            left -= seg[k]
+            k += 1
+        f = min(left / seg[k], 1.0)
+        return (
+            float(a[k, 0] + f * d[k, 0]),
+            float(a[k, 1] + f * d[k, 1]),
+            float(np.arctan2(d[k, 1], d[k, 0])),
+        )
 
     def road_area(self) -> BaseGeometry:
         """Union of every lane's footprint and every junction's shape: where vehicles drive."""
