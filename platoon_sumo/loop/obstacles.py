@@ -36,10 +36,14 @@ LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
 #: either of them inside a junction, is passed by a sidestep when the lane has room
 #: (`sidestep_clearing`).
 STANDING_MPS = 0.3
-#: A car inside a junction slowing down harder than this [m/s²] is seen where it will
-#: stop too: more than a SUMO driver's dawdling (Krauss: up to sigma x accel, 1.3 m/s²
-#: for passenger cars), so it is braking for something.
-BRAKING_MPS2 = 2.0
+#: A car moving inside a junction is also seen where it will be this long from now [s]
+#: at its speed or, slowing down harder than `BRAKING_MPS2` [m/s²], where it will stop
+#: (harder than a SUMO driver's dawdling, Krauss: up to sigma x accel, 1.3 m/s² for
+#: passenger cars: it is braking for something).
+AHEAD_S, BRAKING_MPS2 = 1.0, 2.0
+#: Such cars are looked at within a corridor's length plus this of a member [m]: more
+#: than a junction lane and a car.
+JUNCTION_REACH_M = 50.0
 #: The sidestep clears the corridor by this much [m] and keeps the body this far
 #: inside the lane's edges [m]; the outline is sampled every `OUTLINE_STEP_M`.
 SIDESTEP_EXTRA_M, LANE_EDGE_CLEARANCE_M, OUTLINE_STEP_M = 0.05, 0.1, 0.25
@@ -53,10 +57,11 @@ class ObstaclesAhead:
     along the corridor (0 when oncoming), unless it is crossing and will have left
     (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
     unless SUMO drives the member and the leader's body reaches into the corridor
-    nearer than SUMO's gap says. A car braking inside a junction (`stopping_footprints`)
-    is also where it will stand: DRT, seed 42, 341.0 s, a car turning left across the
-    other direction stopped with its corner in a follower's path, which saw it 3.7 m
-    ahead at 11 m/s (SUMO's lanes do not conflict there).
+    nearer than SUMO's gap says. A car moving inside a junction is also where it will
+    be soon (`moving_footprints`): on DRT a car turning left across the other direction
+    stopped with its corner in a follower's path, which saw it 3.7 m ahead at 11 m/s
+    (seed 42, 341.0 s); another started across and stopped 5 m ahead of one at 9 m/s
+    (seed 43, 264.7 s).
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -110,9 +115,11 @@ class ObstaclesAhead:
             )
         selves = np.array([world.index[m.id] for m in members], dtype=np.int64)
         network = ctx.run.plan.network
-        stops, stopping = stopping_footprints(ctx, network)
-        owners = np.concatenate([np.arange(len(rects)), stopping])
-        every = np.concatenate([rects, stops]) if len(stops) else rects
+        fronts = np.column_stack([world.front_x_m[selves], world.front_y_m[selves]])
+        reach = float(table[:, 3].max()) + JUNCTION_REACH_M
+        ahead, whose, standing = moving_footprints(ctx, network, fronts, reach)
+        owners = np.concatenate([np.arange(len(rects)), whose])
+        every = np.concatenate([rects, ahead]) if len(ahead) else rects
         args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
         count = corridor_intrusions(*args, *self._outputs)
         if count > len(self._outputs[0]):
@@ -127,10 +134,11 @@ class ObstaclesAhead:
             if m.obstacle_ahead is not None:
                 continue
             i = int(owners[rect[k]])
-            will_stop = int(rect[k]) >= len(rects)  # where a braking car will stand
+            later = int(rect[k]) - len(rects)  # >= 0: where a moving car will be
+            will_stop = later >= 0 and bool(standing[later])
             other = world.ids[i]
             leader = m.vehicle_ahead
-            if leader is not None and leader.vehicle_id == other and will_stop:
+            if leader is not None and leader.vehicle_id == other and later >= 0:
                 continue  # SUMO's leader: followed at its gap and speed
             if leader is not None and leader.vehicle_id == other:
                 # SUMO's leader, whose gap along the lanes is the exact one; unless SUMO
@@ -166,40 +174,58 @@ class ObstaclesAhead:
                 )  # fmt: skip
 
 
-def stopping_footprints(ctx: StepContext, network: Network) -> tuple[FloatArray, IntArray]:
-    """Footprints where the cars braking inside a junction will stand, and whose they
-    are: each moved along its junction lane (up to its end) by its stopping distance at
-    the deceleration it showed over the step, if harder than `BRAKING_MPS2`. A car that
-    will stop in a member's path must be seen before it gets there: a car at 11 m/s
-    needs about 13 m to stop comfortably, and SUMO's drivers brake late."""
+def moving_footprints(
+    ctx: StepContext, network: Network, near_xy_m: FloatArray, reach_m: float
+) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
+    """Where the cars moving inside a junction within `reach_m` of a point of
+    `near_xy_m` will be: each moved along its junction lane (up to its end) by
+    `AHEAD_S` of driving at its speed or, slowing down harder than `BRAKING_MPS2` over
+    the step, by its stopping distance. Returns their footprints, whose they are, and
+    whether they will stand there. A car that enters a member's path must be seen
+    before it is there: a car at 11 m/s needs about 13 m to stop comfortably, and
+    SUMO's drivers start into a junction and then brake late for the car they yield to."""
     world, before = ctx.world, ctx.sensed_world
-    none = (np.empty((0, 5)), np.empty(0, dtype=np.int64))
-    if before is None or world.time_s <= before.time_s:
+    none = (np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
+    if before is None or world.time_s <= before.time_s or not len(near_xy_m):
         return none
     dt_s = world.time_s - before.time_s
-    rows, owners = [], []
-    for i, lane in enumerate(world.lane_ids):
-        if lane[:1] != ":" or world.speed_mps[i] < STANDING_MPS:
-            continue
+    moving = np.flatnonzero(world.speed_mps >= STANDING_MPS)
+    inside = [i for i in moving.tolist() if world.lane_ids[i][:1] == ":"]
+    if not inside:
+        return none
+    xy = np.column_stack([world.front_x_m[inside], world.front_y_m[inside]])
+    gaps = np.hypot(*(xy[:, None, :] - near_xy_m[None, :, :]).transpose(2, 0, 1)).min(axis=1)
+    rows, owners, stands = [], [], []
+    for i in np.asarray(inside)[gaps <= reach_m].tolist():
+        lane, length = world.lane_ids[i], float(world.length_m[i])
+        x, y, speed = (
+            float(world.front_x_m[i]),
+            float(world.front_y_m[i]),
+            float(world.speed_mps[i]),
+        )
         j = before.index.get(world.ids[i])
-        if j is None:
+        decel = 0.0 if j is None else (float(before.speed_mps[j]) - speed) / dt_s
+        stops = decel > BRAKING_MPS2
+        ahead = speed * speed / (2.0 * decel) if stops else speed * AHEAD_S
+        frame = network.lane_frame(lane, x, y)
+        if frame is None:
             continue
-        speed = float(world.speed_mps[i])
-        decel = (float(before.speed_mps[j]) - speed) / dt_s
-        if decel <= BRAKING_MPS2:
+        front = network.lane_point(lane, frame[1] + ahead)
+        rear = network.lane_point(lane, frame[1] + ahead - length)
+        if front is None or rear is None:
             continue
-        x, y = float(world.front_x_m[i]), float(world.front_y_m[i])
-        stop = network.lane_point_ahead(lane, x, y, speed * speed / (2.0 * decel))
-        if stop is None:
-            continue
-        fx, fy, yaw = stop
-        half = 0.5 * float(world.length_m[i])
-        rows.append((fx - half * math.cos(yaw), fy - half * math.sin(yaw), yaw,
-                     float(world.length_m[i]), float(world.width_m[i])))  # fmt: skip
+        # the body along the lane's chord (the lane's direction at the front turns
+        # ahead of the body on a curve)
+        chord = math.hypot(front[0] - rear[0], front[1] - rear[1])
+        yaw = math.atan2(front[1] - rear[1], front[0] - rear[0]) if chord > 0.1 else front[2]
+        half = 0.5 * length
+        rows.append((front[0] - half * math.cos(yaw), front[1] - half * math.sin(yaw), yaw,
+                     length, float(world.width_m[i])))  # fmt: skip
         owners.append(i)
+        stands.append(stops)
     if not rows:
         return none
-    return np.array(rows), np.array(owners, dtype=np.int64)
+    return np.array(rows), np.array(owners, dtype=np.int64), np.array(stands, dtype=np.bool_)
 
 
 def crosses_before_arrival(

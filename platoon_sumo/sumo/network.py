@@ -121,26 +121,20 @@ class Network:
         (k, t), (_, d, _, seg) = found, segments
         return float(np.arctan2(d[k, 1], d[k, 0])), float(seg[:k].sum() + t * seg[k])
 
-    def lane_point_ahead(
-        self, lane_id: str, x_m: float, y_m: float, ahead_m: float
-    ) -> tuple[float, float, float] | None:
-        """(x, y, direction [rad]) of the lane's centre line `ahead_m` further along it
-        than its point nearest to (x, y), at most its end; None for an unknown lane."""
-        found = self._nearest_on_lane(lane_id, x_m, y_m)
+    def lane_point(self, lane_id: str, position_m: float) -> tuple[float, float, float] | None:
+        """(x, y, direction [rad]) of the lane's centre line `position_m` from its start
+        (clipped to the lane); None for an unknown lane."""
         segments = self._lane_segments(lane_id)
-        if found is None or segments is None:
+        if segments is None:
             return None
-        (k, t), (a, d, _, seg) = found, segments
-        left = ahead_m + t * seg[k]  # from the start of segment k
+        a, d, _, seg = segments
+        k, left = 0, max(position_m, 0.0)
         while left > seg[k] and k + 1 < len(seg):
             left -= seg[k]
             k += 1
         f = min(left / seg[k], 1.0)
-        return (
-            float(a[k, 0] + f * d[k, 0]),
-            float(a[k, 1] + f * d[k, 1]),
-            float(np.arctan2(d[k, 1], d[k, 0])),
-        )
+        yaw = float(np.arctan2(d[k, 1], d[k, 0]))
+        return float(a[k, 0] + f * d[k, 0]), float(a[k, 1] + f * d[k, 1]), yaw
 
     def road_area(self) -> BaseGeometry:
         """Union of every lane's footprint and every junction's shape: where vehicles drive."""
