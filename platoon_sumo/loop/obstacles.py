@@ -17,7 +17,7 @@ from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.path import RoutePath
 from platoon_sumo.sumo.network import Network
-from platoon_sumo.world import VehicleAhead
+from platoon_sumo.world import VehicleAhead, WorldSnapshot
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -117,7 +117,7 @@ class ObstaclesAhead:
         network = ctx.run.plan.network
         fronts = np.column_stack([world.front_x_m[selves], world.front_y_m[selves]])
         reach = float(table[:, 3].max()) + JUNCTION_REACH_M
-        ahead, whose, standing = moving_footprints(ctx, network, fronts, reach)
+        ahead, whose, standing = moving_footprints(world, ctx.sensed_world, network, fronts, reach)
         owners = np.concatenate([np.arange(len(rects)), whose])
         every = np.concatenate([rects, ahead]) if len(ahead) else rects
         args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
@@ -175,20 +175,27 @@ class ObstaclesAhead:
 
 
 def moving_footprints(
-    ctx: StepContext, network: Network, near_xy_m: FloatArray, reach_m: float
+    world: WorldSnapshot,
+    before: WorldSnapshot | None,
+    network: Network,
+    near_xy_m: FloatArray,
+    reach_m: float,
 ) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
     """Where the cars moving inside a junction within `reach_m` of a point of
-    `near_xy_m` will be: each moved along its junction lane (up to its end) by
-    `AHEAD_S` of driving at its speed or, slowing down harder than `BRAKING_MPS2` over
-    the step, by its stopping distance. Returns their footprints, whose they are, and
-    whether they will stand there. A car that enters a member's path must be seen
-    before it is there: a car at 11 m/s needs about 13 m to stop comfortably, and
-    SUMO's drivers start into a junction and then brake late for the car they yield to."""
-    world, before = ctx.world, ctx.sensed_world
+    `near_xy_m` will be: each moved along its junction lanes (and the road they lead
+    to) by `AHEAD_S` of driving at its speed or, slowing down harder than
+    `BRAKING_MPS2` over the step, by its stopping distance. Returns their footprints,
+    whose they are, and whether they will stand there. A car that enters a member's
+    path must be seen before it is there: a car at 11 m/s needs about 13 m to stop
+    comfortably, and SUMO's drivers start into a junction and then brake late for the
+    car they yield to.
+    `before` is the world a step earlier (None: no braking known)."""
     none = (np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
-    if before is None or world.time_s <= before.time_s or not len(near_xy_m):
+    if not len(near_xy_m):
         return none
-    dt_s = world.time_s - before.time_s
+    if before is not None and world.time_s <= before.time_s:
+        before = None
+    dt_s = world.time_s - before.time_s if before is not None else 0.0
     moving = np.flatnonzero(world.speed_mps >= STANDING_MPS)
     inside = [i for i in moving.tolist() if world.lane_ids[i][:1] == ":"]
     if not inside:
@@ -197,17 +204,12 @@ def moving_footprints(
     gaps = np.hypot(*(xy[:, None, :] - near_xy_m[None, :, :]).transpose(2, 0, 1)).min(axis=1)
     rows, owners, stands = [], [], []
     for i in np.asarray(inside)[gaps <= reach_m].tolist():
-        lane, length = world.lane_ids[i], float(world.length_m[i])
-        x, y, speed = (
-            float(world.front_x_m[i]),
-            float(world.front_y_m[i]),
-            float(world.speed_mps[i]),
-        )
-        j = before.index.get(world.ids[i])
-        decel = 0.0 if j is None else (float(before.speed_mps[j]) - speed) / dt_s
+        lane, length, speed = world.lane_ids[i], float(world.length_m[i]), float(world.speed_mps[i])
+        j = None if before is None else before.index.get(world.ids[i])
+        decel = 0.0 if before is None or j is None else (before.speed_mps[j] - speed) / dt_s
         stops = decel > BRAKING_MPS2
         ahead = speed * speed / (2.0 * decel) if stops else speed * AHEAD_S
-        frame = network.lane_frame(lane, x, y)
+        frame = network.lane_frame(lane, float(world.front_x_m[i]), float(world.front_y_m[i]))
         if frame is None:
             continue
         front = network.lane_point(lane, frame[1] + ahead)

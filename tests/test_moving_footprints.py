@@ -1,0 +1,107 @@
+"""Where cars moving inside a junction will be (`loop.obstacles.moving_footprints`),
+against shapely's interpolation along SUMO's lane shapes (read with sumolib)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import sumolib
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from shapely.geometry import LineString
+
+from platoon_sumo.loop.obstacles import AHEAD_S, BRAKING_MPS2, moving_footprints
+from platoon_sumo.sumo.network import Network
+from platoon_sumo.world import WorldSnapshot
+from tests.helpers import URBAN_GRID_NET
+
+NETWORK = Network(URBAN_GRID_NET)
+SUMOLIB = sumolib.net.readNet(str(URBAN_GRID_NET), withInternal=True)
+#: A left turn's two junction lanes (to its waiting point, then curved), a right turn
+#: inside junction B1, and a normal lane.
+LEFT_TURN_START, LEFT_TURN, RIGHT_TURN, ROAD = ":B1_3_0", ":B1_16_0", ":B1_0_0", "A1B1_0"
+LENGTH_M, WIDTH_M, DT_S = 4.5, 1.8, 0.1
+
+
+def snapshot(time_s: float, cars: list[tuple[str, str, float, float]]) -> WorldSnapshot:
+    """Cars (id, lane, position along the lane [m], speed [m/s]), fronts on the lane."""
+    fronts = [lane_line(lane).interpolate(s) for _, lane, s, _ in cars]
+    n = len(cars)
+    return WorldSnapshot(
+        time_s=time_s,
+        ids=tuple(c[0] for c in cars),
+        front_x_m=np.array([p.x for p in fronts]),
+        front_y_m=np.array([p.y for p in fronts]),
+        yaw_rad=np.zeros(n),
+        length_m=np.full(n, LENGTH_M),
+        width_m=np.full(n, WIDTH_M),
+        speed_mps=np.array([c[3] for c in cars], dtype=float),
+        lane_ids=tuple(c[1] for c in cars),
+        index={c[0]: k for k, c in enumerate(cars)},
+    )
+
+
+def lane_line(lane_id: str) -> LineString:
+    return LineString(SUMOLIB.getLane(lane_id).getShape())
+
+
+def chain_line(lane_id: str) -> LineString:
+    """The lane and, from a junction lane, the lanes it leads to up to the next road."""
+    points = list(SUMOLIB.getLane(lane_id).getShape())
+    while lane_id.startswith(":"):
+        (link,) = SUMOLIB.getLane(lane_id).getOutgoing()
+        lane_id = link.getViaLaneID() or link.getToLane().getID()
+        points += list(SUMOLIB.getLane(lane_id).getShape())[1:]
+    return LineString(points)
+
+
+def front_of(rect: np.ndarray) -> np.ndarray:
+    return rect[:2] + 0.5 * rect[3] * np.array([math.cos(rect[2]), math.sin(rect[2])])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lane=st.sampled_from([LEFT_TURN_START, LEFT_TURN, RIGHT_TURN]),
+    fraction=st.floats(0.0, 1.0),
+    speed=st.floats(0.3, 15.0),
+    decel=st.floats(-3.0, 8.0),
+)
+def test_a_car_in_a_junction_is_moved_along_its_lanes(lane, fraction, speed, decel):
+    s = fraction * lane_line(lane).length
+    line = chain_line(lane)  # on into the lanes it leads to
+    now = snapshot(10.0, [("h", lane, s, speed)])
+    before = snapshot(10.0 - DT_S, [("h", lane, s, speed + decel * DT_S)])
+    near = np.array([[now.front_x_m[0], now.front_y_m[0]]])
+    rects, owners, stands = moving_footprints(now, before, NETWORK, near, 100.0)
+    shown = (before.speed_mps[0] - speed) / DT_S  # the deceleration over the step
+    braking = shown > BRAKING_MPS2
+    ahead = speed * speed / (2 * shown) if braking else speed * AHEAD_S
+    # both ends on the lanes (shapely counts a negative distance from the end)
+    front = line.interpolate(min(s + ahead, line.length))
+    rear = line.interpolate(min(max(s + ahead - LENGTH_M, 0.0), line.length))
+    assert owners.tolist() == [0] and stands.tolist() == [braking]
+    assert front_of(rects[0]) == pytest.approx([front.x, front.y], abs=1e-6)
+    if front.distance(rear) > 0.1:  # the body along the lane's chord
+        chord = math.atan2(front.y - rear.y, front.x - rear.x)
+        assert math.cos(rects[0, 2] - chord) == pytest.approx(1.0, abs=1e-9)
+    assert rects[0, 3:].tolist() == [LENGTH_M, WIDTH_M]
+
+
+def test_only_moving_cars_inside_a_junction_near_a_member_are_moved():
+    cars = [
+        ("road", ROAD, 50.0, 10.0),  # on a normal lane
+        ("standing", LEFT_TURN, 3.0, 0.0),
+        ("turning", RIGHT_TURN, 2.0, 5.0),
+    ]
+    now = snapshot(10.0, cars)
+    turning = np.array([[now.front_x_m[2], now.front_y_m[2]]])
+    rects, owners, _ = moving_footprints(now, None, NETWORK, turning + 5.0, 10.0)
+    assert owners.tolist() == [2]  # without an earlier world: at its speed
+    assert front_of(rects[0]) == pytest.approx(
+        [lane_line(RIGHT_TURN).interpolate(2.0 + 5.0 * AHEAD_S).x,
+         lane_line(RIGHT_TURN).interpolate(2.0 + 5.0 * AHEAD_S).y], abs=1e-6,
+    )  # fmt: skip
+    far = turning + 200.0
+    assert len(moving_footprints(now, None, NETWORK, far, 10.0)[0]) == 0
