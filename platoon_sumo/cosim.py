@@ -6,7 +6,7 @@ A step is a fixed sequence of stages (`platoon_sumo.loop`) sharing one `StepCont
     RemovedElsewhere -> InsertDue -> Sense -> Decide -> Actuate
   SUMO's step, then (on the new world):
     SumoReports -> Gridlocks -> Arrivals -> ObserveWorld -> Departures -> ReadBack
-    -> RouteProgress -> LaneChangeGaps -> Footprints -> ObstaclesAhead -> Predecessors
+    -> RouteProgress -> Standoffs -> LaneChangeGaps -> Footprints -> ObstaclesAhead -> Predecessors
     -> Cohesion -> SafetyCheck
   then every hook gets the step's immutable record.
 
@@ -41,6 +41,7 @@ from platoon_sumo.loop.ports import Backend
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
+from platoon_sumo.loop.standoff import Standoffs
 from platoon_sumo.scenario import PlatoonPlan, RunPlan
 
 FloatArray = NDArray[np.float64]
@@ -59,9 +60,8 @@ def before_sumo_stages() -> list[Stage]:
 def after_sumo_stages() -> list[Stage]:
     return [
         SumoReports(), Gridlocks(), Arrivals(), ObserveWorld(), Departures(), ReadBack(),
-        RouteProgress(), LaneChangeGaps(), Footprints(), ObstaclesAhead(), Predecessors(),
-        Cohesion(),
-        SafetyCheck(),
+        RouteProgress(), Standoffs(), LaneChangeGaps(), Footprints(), ObstaclesAhead(),
+        Predecessors(), Cohesion(), SafetyCheck(),
     ]  # fmt: skip
 
 

@@ -29,6 +29,9 @@ class EventKind(str, Enum):
     its schedule nor queued at a red light."""
     RED_LIGHT = "red_light"
     """A platoon vehicle crossed a stop line on red or red-yellow."""
+    STANDOFF = "standoff"
+    """A platoon vehicle SUMO held at an unsignalised link took the junction, every
+    vehicle it yielded to standing still too (a circle of right of way)."""
     EMERGENCY_BRAKING = "emergency_braking"
     """The supervisor's last-resort brake began to act on a platoon vehicle."""
     SUMO_SPEED_CAP = "sumo_speed_cap"

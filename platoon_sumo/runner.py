@@ -332,6 +332,7 @@ def event_summary(events: list[Event], platoon_vehicle_ids: set[str]) -> dict[st
             for e in of_kind(events, EventKind.GRIDLOCK)
         ],
         "emergency_brakings": count(events, EventKind.EMERGENCY_BRAKING),
+        "standoffs": count(events, EventKind.STANDOFF),
         "sumo_speed_caps": count(events, EventKind.SUMO_SPEED_CAP),
         "red_light_violations": len(red),
         "red_light_events": [

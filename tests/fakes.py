@@ -28,6 +28,8 @@ class FakeVehicle:
     length_m: float = 4.5
     width_m: float = 1.8
     sumo_drives: bool = True
+    lane_id: str = LANE
+    standing_s: float = 0.0
 
 
 class FakeBackend:
@@ -45,6 +47,9 @@ class FakeBackend:
         self.speed_commands: dict[str, float] = {}
         self.lane_requests: dict[str, int] = {}
         self.collisions: list[tuple[str, str, str]] = []
+        self.yields: dict[str, list[str]] = {}
+        """Per vehicle: the vehicles SUMO's right of way makes it yield to."""
+        self.taking_right_of_way: dict[str, bool] = {}
         self.fail_moves_beyond_y_m = 10.0
         self.standing: list[StandingVehicle] = []
 
@@ -80,7 +85,7 @@ class FakeBackend:
         arr = lambda f: np.array([getattr(v, f) for v in vs], dtype=np.float64)  # noqa: E731
         return WorldSnapshot(
             self.time, tuple(ids), arr("x_m"), arr("y_m"), arr("yaw_rad"), arr("length_m"),
-            arr("width_m"), arr("speed_mps"), tuple(LANE for _ in ids),
+            arr("width_m"), arr("speed_mps"), tuple(v.lane_id for v in vs),
             {v: i for i, v in enumerate(ids)},
         )  # fmt: skip
 
@@ -184,6 +189,12 @@ class FakeBackend:
     def lane_room(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray, FloatArray]:
         unbounded = np.full(len(vehicle_ids), np.inf)  # the fake's lane has no end
         return np.zeros(len(vehicle_ids)), unbounded, unbounded.copy()
+
+    def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
+        return [(f, self.vehicles[f].standing_s) for f in self.yields.get(vehicle_id, [])]
+
+    def take_right_of_way(self, vehicle_id: str, take: bool) -> None:
+        self.taking_right_of_way[vehicle_id] = take
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         self.removed.append((vehicle_id, arrived))

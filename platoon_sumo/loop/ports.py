@@ -83,6 +83,16 @@ class Backend(Protocol):
         within its horizon), as SUMO sees them after the last step."""
         ...
 
+    def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
+        """(id, seconds standing still) of the vehicles SUMO's right of way makes this
+        one yield to at the junction ahead: the nearest of each conflicting stream."""
+        ...
+
+    def take_right_of_way(self, vehicle_id: str, take: bool) -> None:
+        """Let SUMO drive the vehicle into junctions without yielding (`take`; it still
+        keeps its distance to vehicles inside), or yield again."""
+        ...
+
     def move(
         self,
         vehicle_ids: Sequence[str],

@@ -39,6 +39,12 @@ LANE_CHANGE_STRATEGIC_ONLY = 1 + 512 + 1024
 #: cars; SUMO's own checks blocked platoon members moving sideways beside each other);
 #: no change, lateral alignment or strategic move of SUMO's own.
 LANE_CHANGE_REQUESTS_ONLY = 0
+#: SUMO's speedMode bits: safe speed (1), maximum acceleration (2) and deceleration (4),
+#: right of way at junctions (8), braking for red lights (16): SUMO's default, and the
+#: same without yielding at junctions (it still keeps its distance to vehicles inside).
+DEFAULT_SPEED_MODE, TAKING_RIGHT_OF_WAY = 31, 31 - 8
+#: Junction foes are looked for this far ahead of a vehicle [m].
+JUNCTION_FOES_M = 50.0
 #: Sublane actuation: slower sideways commands are a stop of the lateral move [m/s].
 MIN_LATERAL_SPEED_MPS = 0.005
 #: Sublane actuation asks for a lateral offset at least this far (and v² m) beyond,
@@ -829,6 +835,24 @@ class SumoBackend:
         self._kept_on.pop(vid, None)
         self._route_lanes.pop(vid, None)
         self._lane_signals.pop(vid, None)
+
+    def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
+        """The vehicles SUMO's right of way makes this one yield to at the junction
+        ahead, the nearest on each conflicting junction lane (`getJunctionFoes`: foe,
+        its distance to the conflict, its junction lane, the ego's response), with how
+        long each has stood still (SUMO's waiting time)."""
+        veh = self._api.vehicle
+        first: dict[str, tuple[float, str]] = {}
+        for f in veh.getJunctionFoes(vehicle_id, JUNCTION_FOES_M):
+            foe, foe_m, foe_lane, yields = f[0], f[2], f[5], f[6]
+            if yields and foe_m < first.get(foe_lane, (math.inf, ""))[0]:
+                first[foe_lane] = (foe_m, foe)
+        return [(foe, float(veh.getWaitingTime(foe))) for _, foe in first.values()]
+
+    def take_right_of_way(self, vehicle_id: str, take: bool) -> None:
+        self._api.vehicle.setSpeedMode(
+            vehicle_id, TAKING_RIGHT_OF_WAY if take else DEFAULT_SPEED_MODE
+        )
 
     def route_contexts(
         self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]

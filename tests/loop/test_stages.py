@@ -25,10 +25,11 @@ from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
+from platoon_sumo.loop.standoff import FOES_STILL_S, STANDOFF_S, Standoffs
 from platoon_sumo.runner import load_plan
 from platoon_sumo.scenario import RunPlan
 from platoon_sumo.vehicles import Bicycle
-from platoon_sumo.world import VehicleAhead
+from platoon_sumo.world import LinkAhead, VehicleAhead
 from tests.fakes import LANE_Y_M, FakeBackend, FakeVehicle
 from tests.helpers import REPO
 
@@ -470,6 +471,50 @@ def test_sumos_leader_is_an_obstacle_when_its_body_reaches_nearer_than_its_gap(
     assert ahead is not None and ahead.vehicle_id == "h"
     assert 5.1 - 0.5 <= ahead.gap_m <= 5.1  # slices of 0.5 m
     assert found[1] is None and found[2] is None  # SUMO's gap is the body's (a slice on)
+
+
+def test_a_car_held_in_a_circle_of_right_of_way_takes_the_junction(write_scenario):
+    """SUMO holds p.0 at a minor link, yielding to h; h stands too (it yields to
+    someone else). After `STANDOFF_S`, once h has stood for `FOES_STILL_S`, p.0 takes
+    the junction; once across (on another lane) it yields again. While h moves, or
+    before the time, nothing happens."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)
+    member = ctx.fleet.get("p.0")
+    assert member is not None
+    backend.vehicles["h"] = FakeVehicle(130.0, LANE_Y_M + 20.0, speed_mps=2.0)
+    backend.yields["p.0"] = ["h"]
+    standoffs = Standoffs()
+    taken_at = []
+
+    def step(seconds: float) -> None:
+        for _ in range(round(seconds / ctx.dt_s)):
+            backend.time = round(backend.time + ctx.dt_s, 9)
+            ObserveWorld()(ctx)
+            member.link_ahead = LinkAhead("m", False, False, True, 1.0)
+            ctx.events = []
+            standoffs(ctx)
+            taken_at.extend(ctx.world.time_s for e in ctx.events if e.kind is EventKind.STANDOFF)
+
+    step(STANDOFF_S - 1.0)
+    backend.vehicles["h"].standing_s = FOES_STILL_S  # before the time
+    step(0.5)
+    assert not taken_at
+    backend.vehicles["h"].standing_s = FOES_STILL_S - 1.0  # h stopped only just now
+    step(2.0)
+    assert not taken_at and "p.0" not in backend.taking_right_of_way
+    backend.vehicles["h"].standing_s = FOES_STILL_S
+    now = backend.time
+    step(1.0)
+    assert backend.taking_right_of_way == {"p.0": True}
+    assert taken_at == [pytest.approx(now + ctx.dt_s)]  # at once
+    backend.vehicles["p.0"].lane_id = ":j_0_0"  # inside the junction: still taking it
+    step(1.0)
+    assert backend.taking_right_of_way == {"p.0": True}
+    backend.vehicles["p.0"].lane_id = "out_0"  # across
+    step(0.1)
+    assert backend.taking_right_of_way == {"p.0": False} and len(taken_at) == 1
 
 
 def test_sumo_reports_count_each_collision_once(write_scenario):
