@@ -12,12 +12,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString
 
-from platoon_sumo.loop.obstacles import AHEAD_S, BRAKING_MPS2, moving_footprints
+from platoon_sumo.loop.obstacles import AHEAD_S, BRAKING_MPS2, JunctionLanes, moving_footprints
 from platoon_sumo.sumo.network import Network
 from platoon_sumo.world import WorldSnapshot
 from tests.helpers import URBAN_GRID_NET
 
-NETWORK = Network(URBAN_GRID_NET)
+LANES = JunctionLanes(Network(URBAN_GRID_NET))
 SUMOLIB = sumolib.net.readNet(str(URBAN_GRID_NET), withInternal=True)
 #: A left turn's two junction lanes (to its waiting point, then curved), a right turn
 #: inside junction B1, and a normal lane.
@@ -74,7 +74,7 @@ def test_a_car_in_a_junction_is_moved_along_its_lanes(lane, fraction, speed, dec
     now = snapshot(10.0, [("h", lane, s, speed)])
     before = snapshot(10.0 - DT_S, [("h", lane, s, speed + decel * DT_S)])
     near = np.array([[now.front_x_m[0], now.front_y_m[0]]])
-    rects, owners, stands = moving_footprints(now, before, NETWORK, near, 100.0)
+    rects, owners, stands = moving_footprints(now, before, LANES, near, 100.0)
     shown = (before.speed_mps[0] - speed) / DT_S  # the deceleration over the step
     braking = shown > BRAKING_MPS2
     ahead = speed * speed / (2 * shown) if braking else speed * AHEAD_S
@@ -97,11 +97,11 @@ def test_only_moving_cars_inside_a_junction_near_a_member_are_moved():
     ]
     now = snapshot(10.0, cars)
     turning = np.array([[now.front_x_m[2], now.front_y_m[2]]])
-    rects, owners, _ = moving_footprints(now, None, NETWORK, turning + 5.0, 10.0)
+    rects, owners, _ = moving_footprints(now, None, LANES, turning + 5.0, 10.0)
     assert owners.tolist() == [2]  # without an earlier world: at its speed
     assert front_of(rects[0]) == pytest.approx(
         [lane_line(RIGHT_TURN).interpolate(2.0 + 5.0 * AHEAD_S).x,
          lane_line(RIGHT_TURN).interpolate(2.0 + 5.0 * AHEAD_S).y], abs=1e-6,
     )  # fmt: skip
     far = turning + 200.0
-    assert len(moving_footprints(now, None, NETWORK, far, 10.0)[0]) == 0
+    assert len(moving_footprints(now, None, LANES, far, 10.0)[0]) == 0

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, empty_outputs
+from platoon_sumo.kernels.lanes import moved_along_lanes
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.path import RoutePath
@@ -70,6 +71,7 @@ class ObstaclesAhead:
         self._rows: dict[tuple[int, str], tuple[float, float, float, float, float]] = {}
         self._paths: list[RoutePath] = []
         self._stacked: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None
+        self._lanes: JunctionLanes | None = None
 
     def _constants(self, m: Member) -> tuple[float, float, float, float, float]:
         """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width) of
@@ -117,7 +119,11 @@ class ObstaclesAhead:
         network = ctx.run.plan.network
         fronts = np.column_stack([world.front_x_m[selves], world.front_y_m[selves]])
         reach = float(table[:, 3].max()) + JUNCTION_REACH_M
-        ahead, whose, standing = moving_footprints(world, ctx.sensed_world, network, fronts, reach)
+        if self._lanes is None:
+            self._lanes = JunctionLanes(network)
+        ahead, whose, standing = moving_footprints(
+            world, ctx.sensed_world, self._lanes, fronts, reach
+        )
         owners = np.concatenate([np.arange(len(rects)), whose])
         every = np.concatenate([rects, ahead]) if len(ahead) else rects
         args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
@@ -174,60 +180,104 @@ class ObstaclesAhead:
                 )  # fmt: skip
 
 
+class JunctionLanes:
+    """The shapes of the junction lanes cars were seen on, each with the lanes it leads
+    to, stacked for `kernels.lanes` (a lane is added the first time a car is on it; the
+    points go into a buffer that doubles when full)."""
+
+    def __init__(self, network: Network) -> None:
+        self._network = network
+        self._index: dict[str, int] = {}
+        self._points = np.empty((1024, 2))
+        self._starts, self._lengths, self._successors = [0], list[float](), list[int]()
+        self._stacked: tuple[FloatArray, IntArray, FloatArray, IntArray] | None = None
+
+    def index(self, lane_id: str) -> int:
+        """The lane's row (-1: unknown to the network or without a shape)."""
+        known = self._index.get(lane_id)
+        if known is not None:
+            return known
+        try:
+            shape = self._network.lane_shape(lane_id)
+        except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
+            shape = np.empty((0, 2))
+        if len(shape) < 2:
+            self._index[lane_id] = -1
+            return -1
+        k = self._index[lane_id] = len(self._lengths)
+        start, end = self._starts[-1], self._starts[-1] + len(shape)
+        while end > len(self._points):
+            self._points = np.concatenate([self._points, np.empty_like(self._points)])
+        self._points[start:end] = shape
+        self._starts.append(end)
+        steps = np.maximum((np.diff(shape, axis=0) ** 2).sum(axis=1), 1e-12)
+        self._lengths.append(float(np.sqrt(steps).sum()))  # as the kernel walks it
+        self._successors.append(-1)
+        self._stacked = None
+        after = self._network.junction_successor(lane_id)
+        if after is not None:
+            self._successors[k] = self.index(after)
+        return k
+
+    def stacked(self) -> tuple[FloatArray, IntArray, FloatArray, IntArray]:
+        """(points, starts, lengths, successors) for `kernels.lanes`."""
+        if self._stacked is None:
+            self._stacked = (
+                self._points[: self._starts[-1]],
+                np.array(self._starts, dtype=np.int64),
+                np.array(self._lengths),
+                np.array(self._successors, dtype=np.int64),
+            )
+        return self._stacked
+
+
 def moving_footprints(
     world: WorldSnapshot,
     before: WorldSnapshot | None,
-    network: Network,
+    lanes: JunctionLanes,
     near_xy_m: FloatArray,
     reach_m: float,
 ) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
     """Where the cars moving inside a junction within `reach_m` of a point of
     `near_xy_m` will be: each moved along its junction lanes (and the road they lead
     to) by `AHEAD_S` of driving at its speed or, slowing down harder than
-    `BRAKING_MPS2` over the step, by its stopping distance. Returns their footprints,
-    whose they are, and whether they will stand there. A car that enters a member's
-    path must be seen before it is there: a car at 11 m/s needs about 13 m to stop
-    comfortably, and SUMO's drivers start into a junction and then brake late for the
-    car they yield to.
-    `before` is the world a step earlier (None: no braking known)."""
+    `BRAKING_MPS2` over the step, by its stopping distance (`kernels.lanes`). Returns
+    their footprints, whose they are, and whether they will stand there. A car that
+    enters a member's path must be seen before it is there: a car at 11 m/s needs about
+    13 m to stop comfortably, and SUMO's drivers start into a junction and then brake
+    late for the car they yield to. `before` is the world a step earlier (None: no
+    braking known)."""
     none = (np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
     if not len(near_xy_m):
         return none
-    if before is not None and world.time_s <= before.time_s:
-        before = None
-    dt_s = world.time_s - before.time_s if before is not None else 0.0
     moving = np.flatnonzero(world.speed_mps >= STANDING_MPS)
-    inside = [i for i in moving.tolist() if world.lane_ids[i][:1] == ":"]
-    if not inside:
+    inside = np.array([i for i in moving.tolist() if world.lane_ids[i][:1] == ":"], dtype=np.int64)
+    if not len(inside):
         return none
     xy = np.column_stack([world.front_x_m[inside], world.front_y_m[inside]])
     gaps = np.hypot(*(xy[:, None, :] - near_xy_m[None, :, :]).transpose(2, 0, 1)).min(axis=1)
-    rows, owners, stands = [], [], []
-    for i in np.asarray(inside)[gaps <= reach_m].tolist():
-        lane, length, speed = world.lane_ids[i], float(world.length_m[i]), float(world.speed_mps[i])
-        j = None if before is None else before.index.get(world.ids[i])
-        decel = 0.0 if before is None or j is None else (before.speed_mps[j] - speed) / dt_s
-        stops = decel > BRAKING_MPS2
-        ahead = speed * speed / (2.0 * decel) if stops else speed * AHEAD_S
-        frame = network.lane_frame(lane, float(world.front_x_m[i]), float(world.front_y_m[i]))
-        if frame is None:
-            continue
-        front = network.lane_point(lane, frame[1] + ahead)
-        rear = network.lane_point(lane, frame[1] + ahead - length)
-        if front is None or rear is None:
-            continue
-        # the body along the lane's chord (the lane's direction at the front turns
-        # ahead of the body on a curve)
-        chord = math.hypot(front[0] - rear[0], front[1] - rear[1])
-        yaw = math.atan2(front[1] - rear[1], front[0] - rear[0]) if chord > 0.1 else front[2]
-        half = 0.5 * length
-        rows.append((front[0] - half * math.cos(yaw), front[1] - half * math.sin(yaw), yaw,
-                     length, float(world.width_m[i])))  # fmt: skip
-        owners.append(i)
-        stands.append(stops)
-    if not rows:
+    inside = inside[gaps <= reach_m]
+    rows = np.array([lanes.index(world.lane_ids[i]) for i in inside.tolist()], dtype=np.int64)
+    inside, rows = inside[rows >= 0], rows[rows >= 0]
+    if not len(inside):
         return none
-    return np.array(rows), np.array(owners, dtype=np.int64), np.array(stands, dtype=np.bool_)
+    speed = world.speed_mps[inside]
+    decel = np.zeros(len(inside))
+    if before is not None and world.time_s > before.time_s:
+        earlier = [before.index.get(world.ids[i], -1) for i in inside.tolist()]
+        seen = np.array(earlier) >= 0
+        was = before.speed_mps[np.array(earlier)[seen]]
+        decel[seen] = (was - speed[seen]) / (world.time_s - before.time_s)
+    stops = decel > BRAKING_MPS2
+    ahead = np.where(
+        stops, speed * speed / (2.0 * np.maximum(decel, BRAKING_MPS2)), speed * AHEAD_S
+    )
+    length = world.length_m[inside]
+    poses = moved_along_lanes(
+        *lanes.stacked(), rows, world.front_x_m[inside], world.front_y_m[inside], ahead, length
+    )
+    rects = np.column_stack([poses, length, world.width_m[inside]])
+    return rects, inside, stops
 
 
 def crosses_before_arrival(

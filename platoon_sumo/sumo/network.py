@@ -121,31 +121,8 @@ class Network:
         (k, t), (_, d, _, seg) = found, segments
         return float(np.arctan2(d[k, 1], d[k, 0])), float(seg[:k].sum() + t * seg[k])
 
-    def lane_point(self, lane_id: str, position_m: float) -> tuple[float, float, float] | None:
-        """(x, y, direction [rad]) of the lane's centre line `position_m` from its start;
-        None for an unknown lane. Beyond the end of a junction lane it goes on along the
-        lanes the junction lane leads to (each has one), up to the end of the first
-        normal lane; before the start it is clipped."""
-        while True:
-            segments = self._lane_segments(lane_id)
-            if segments is None:
-                return None
-            a, d, _, seg = segments
-            total = float(seg.sum())
-            after = self._successor(lane_id) if position_m > total else None
-            if after is None:
-                break
-            lane_id, position_m = after, position_m - total
-        k, left = 0, max(position_m, 0.0)
-        while left > seg[k] and k + 1 < len(seg):
-            left -= seg[k]
-            k += 1
-        f = min(left / seg[k], 1.0)
-        yaw = float(np.arctan2(d[k, 1], d[k, 0]))
-        return float(a[k, 0] + f * d[k, 0]), float(a[k, 1] + f * d[k, 1]), yaw
-
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
-    def _successor(self, lane_id: str) -> str | None:
+    def junction_successor(self, lane_id: str) -> str | None:
         """The lane a junction lane leads to (its one connection); None for others."""
         if not lane_id.startswith(":"):
             return None
