@@ -37,11 +37,10 @@ LOOK_TIME_S, LOOK_EXTRA_M = 2.0, 10.0
 #: either of them inside a junction, is passed by a sidestep when the lane has room
 #: (`sidestep_clearing`).
 STANDING_MPS = 0.3
-#: A car moving inside a junction is also seen where it will be this long from now [s]
-#: at its speed or, slowing down harder than `BRAKING_MPS2` [m/s²], where it will stop
-#: (harder than a SUMO driver's dawdling, Krauss: up to sigma x accel, 1.3 m/s² for
-#: passenger cars: it is braking for something).
-AHEAD_S, BRAKING_MPS2 = 1.0, 2.0
+#: A car moving inside a junction is also seen where it will be over this long from
+#: now [s], at these fractions of it, keeping the deceleration it showed over the last
+#: step (or its speed).
+AHEAD_S, AHEAD_FRACTIONS = 1.0, (0.25, 0.5, 0.75, 1.0)
 #: Such cars are looked at within a corridor's length plus this of a member [m]: more
 #: than a junction lane and a car.
 JUNCTION_REACH_M = 50.0
@@ -59,10 +58,10 @@ class ObstaclesAhead:
     (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
     unless SUMO drives the member and the leader's body reaches into the corridor
     nearer than SUMO's gap says. A car moving inside a junction is also where it will
-    be soon (`moving_footprints`): on DRT a car turning left across the other direction
-    stopped with its corner in a follower's path, which saw it 3.7 m ahead at 11 m/s
-    (seed 42, 341.0 s); another started across and stopped 5 m ahead of one at 9 m/s
-    (seed 43, 264.7 s).
+    be in `AHEAD_S` (`moving_footprints`): on DRT a car turning left across the other
+    direction stopped with its corner in a follower's path, which saw it 3.7 m ahead at
+    11 m/s (seed 42, 341.0 s); another started across and stopped 5 m ahead of one at
+    9 m/s (seed 43, 264.7 s).
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -239,14 +238,16 @@ def moving_footprints(
     reach_m: float,
 ) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
     """Where the cars moving inside a junction within `reach_m` of a point of
-    `near_xy_m` will be: each moved along its junction lanes (and the road they lead
-    to) by `AHEAD_S` of driving at its speed or, slowing down harder than
-    `BRAKING_MPS2` over the step, by its stopping distance (`kernels.lanes`). Returns
-    their footprints, whose they are, and whether they will stand there. A car that
-    enters a member's path must be seen before it is there: a car at 11 m/s needs about
-    13 m to stop comfortably, and SUMO's drivers start into a junction and then brake
-    late for the car they yield to. `before` is the world a step earlier (None: no
-    braking known)."""
+    `near_xy_m` will be over the next `AHEAD_S`: each moved along its junction lanes
+    (and the road they lead to) as far as it drives by each of `AHEAD_FRACTIONS` of
+    that time, keeping the deceleration it showed over the last step (or its speed, if
+    it did not slow down) up to where it stops (`kernels.lanes`). Returns the
+    footprints (`len(AHEAD_FRACTIONS)` per car, nearest first), whose they are, and
+    whether the car will stand there. A car that enters a member's path must be seen
+    before it is there: a car at 11 m/s needs about 13 m to stop comfortably, and
+    SUMO's drivers start into a junction and then brake late for the car they yield
+    to; a car crossing at speed is in the path between now and a second from now.
+    `before` is the world a step earlier (None: no braking known)."""
     none = (np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_))
     if not len(near_xy_m):
         return none
@@ -268,16 +269,20 @@ def moving_footprints(
         seen = np.array(earlier) >= 0
         was = before.speed_mps[np.array(earlier)[seen]]
         decel[seen] = (was - speed[seen]) / (world.time_s - before.time_s)
-    stops = decel > BRAKING_MPS2
-    ahead = np.where(
-        stops, speed * speed / (2.0 * np.maximum(decel, BRAKING_MPS2)), speed * AHEAD_S
-    )
-    length = world.length_m[inside]
+    decel = np.maximum(decel, 0.0)[:, None]
+    t = AHEAD_S * np.asarray(AHEAD_FRACTIONS)[None, :]
+    v = speed[:, None]
+    stands = v <= decel * t  # stopped by then
+    ahead = np.where(stands, v * v / (2.0 * np.maximum(decel, 1e-9)), v * t - 0.5 * decel * t * t)
+    k = len(AHEAD_FRACTIONS)
+    cars = np.repeat(inside, k)
+    length = world.length_m[cars]
     poses = moved_along_lanes(
-        *lanes.stacked(), rows, world.front_x_m[inside], world.front_y_m[inside], ahead, length
-    )
-    rects = np.column_stack([poses, length, world.width_m[inside]])
-    return rects, inside, stops
+        *lanes.stacked(), np.repeat(rows, k), world.front_x_m[cars], world.front_y_m[cars],
+        ahead.ravel(), length,
+    )  # fmt: skip
+    rects = np.column_stack([poses, length, world.width_m[cars]])
+    return rects, cars, stands.ravel()
 
 
 def crosses_before_arrival(

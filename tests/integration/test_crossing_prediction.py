@@ -6,7 +6,6 @@ not only once its body is in the way."""
 from __future__ import annotations
 
 import json
-import math
 
 import libsumo
 import pandas as pd
@@ -94,8 +93,7 @@ def test_a_car_stopping_across_the_path_is_seen_before_it_is_there(write_scenari
 def test_seen_only_once_in_the_way_the_leader_hits_it(
     write_scenario, tmp_path, monkeypatch: pytest.MonkeyPatch
 ):
-    monkeypatch.setattr(obstacles, "AHEAD_S", 0.0)
-    monkeypatch.setattr(obstacles, "BRAKING_MPS2", math.inf)
+    monkeypatch.setattr(obstacles, "AHEAD_S", 0.0)  # seen where it is
     _, events, _ = crossing_run(write_scenario, tmp_path)
     hits = events[(events["kind"] == "collision") & (events["other_id"] == TURNER)]
     assert len(hits) >= 1 and hits.iloc[0]["vehicle_id"] == "p.0"
