@@ -28,7 +28,7 @@ COLUMNS = (
     "collisions", "collisions_platoon_at_fault", "sumo_collisions_with_platoons",
     "sumo_platoon_collider", "sumo_platoon_victim", "red_lights", "stuck", "gridlocks",
     "gridlocks_without",
-    "teleports", "in_view_share", "human_finished", "human_finished_without",
+    "teleports", "standoffs", "in_view_share", "human_finished", "human_finished_without",
     "human_travel_s", "human_travel_without_s", "wall_with_s", "cpu_with_s",
     "wall_without_s", "cpu_without_s", "status", "notes",
 )  # fmt: skip

@@ -282,6 +282,8 @@ class Row:
     stuck_details: str = ""
     teleports: int | None = None
     emergency_brakings: int | None = None
+    #: platoon cars that took a junction in a circle of right of way (`standoff` events)
+    standoffs: int | None = None
     in_view_share: float | None = None
     human_finished: int | None = None
     human_finished_without: int | None = None
@@ -939,6 +941,7 @@ def with_results(row: Row, cosim: RunOutcome, bare: RunOutcome) -> Row:
             stuck_details=shorten(cosim.stuck, 2),
             teleports=s["teleports"],
             emergency_brakings=s["emergency_brakings"],
+            standoffs=s["standoffs"],
             in_view_share=cosim.in_view_share,
             human_finished=finished,
             human_travel_s=travel,
@@ -949,6 +952,8 @@ def with_results(row: Row, cosim: RunOutcome, bare: RunOutcome) -> Row:
             notes.append(f"{len(s['members_not_inserted'])} members still waiting to depart")
         if s.get("removed_off_route"):
             notes.append(f"{len(s['removed_off_route'])} taken out off their route")
+        if s["standoffs"]:
+            notes.append(f"{s['standoffs']} standoffs (a circle of right of way broken)")
     if bare.ok:
         finished, travel = traffic(bare.summary)
         row = replace(
