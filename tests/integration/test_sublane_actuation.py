@@ -445,3 +445,56 @@ def test_opposite_left_turners_pass_each_other_inside_the_junction(
     assert inside["lateral_offset_m"].abs().max() < 0.35
     for vid in ("w.0", "w.1", "e.0", "e.1"):
         assert last.loc[vid, "lane_id"] in ("CN_1", "CS_1", "CN_0", "CS_0"), vid
+
+
+BULGE_NODES = """<nodes>
+  <node id="W" x="0" y="0"/><node id="E" x="600" y="0"/>
+</nodes>"""
+#: Two lanes of one length side by side, but the left one bulges 10 m out between
+#: x 120 and 220 (as netconvert's invented ramps do): at one lane position the two
+#: lanes lie up to 10 m apart there, and 1-2.3 m apart for 240 m after it.
+BULGE_EDGES = """<edges>
+  <edge id="WE" from="W" to="E" numLanes="2" speed="13.89">
+    <lane index="0" shape="0,-1.6 600,-1.6"/>
+    <lane index="1" shape="0,1.6 120,1.6 145,11.6 195,11.6 220,1.6 600,1.6"/>
+  </edge>
+</edges>"""
+
+
+@pytest.fixture(scope="module")
+def bulge(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_net(tmp_path_factory.mktemp("bulge"), BULGE_NODES, BULGE_EDGES)
+
+
+@pytest.mark.parametrize("kept", [True, False])
+def test_a_car_does_not_cross_into_a_lane_where_sumo_would_move_it(
+    bulge, write_scenario, tmp_path, monkeypatch, kept
+):
+    """The leader steers into the left lane from 15 s (x about 150 m, where the lanes
+    lie 10 m apart). SUMO keeps a car's lane position when it changes lanes and would
+    put it 10 m away; the car keeps its centre in its lane until the lanes lie within
+    `CROSSING_JUMP_M` of side by side again (x about 460 m), then crosses. Without the
+    rule SUMO moves it metres in one step."""
+    if not kept:
+        monkeypatch.setattr(backend, "CROSSING_JUMP_M", math.inf)
+    scenario = {
+        "simulation": {"step_s": 0.1, "end_s": 70.0, "seed": 1, "lateral_resolution_m": 0.4},
+        "network": {"net_file": str(bulge)},
+        "platoons": [{
+            "id": "p", "members": 1, "depart_s": 1.0, "depart_lane": 0, "actuation": "sublane",
+            "route": {"edges": ["WE"]},
+            "leader": {"type": "weave:Weave", "params": {"offset_m": 3.2, "from_s": 15.0}},
+        }],
+    }  # fmt: skip
+    out = run(load_plan(write_scenario(scenario)), tmp_path / "out").directory
+    traj = pd.read_csv(out / "trajectories.csv")
+    leader = traj[traj["vehicle_id"] == "p.0"]
+    moved = np.hypot(np.diff(leader["x_m"]), np.diff(leader["y_m"]))
+    beyond = moved - leader["speed_mps"].to_numpy()[1:] * 0.1
+    crossed = leader.loc[leader["lane_id"] == "WE_1", "x_m"].min()
+    if kept:
+        assert beyond.max() < backend.CROSSING_JUMP_M + 0.1
+        assert 400.0 < crossed < 520.0  # after the lanes came side by side again
+        assert (last_seconds(traj, "p.0", "lane_id", 5.0) == "WE_1").all()
+    else:
+        assert beyond.max() > 5.0 and crossed < 200.0
