@@ -83,43 +83,24 @@ class Network:
         """(k, 2) centre-line of a lane, internal junction lanes included."""
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
 
-    @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
-    def _lane_segments(
-        self, lane_id: str
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-        """(starts, directions, squared lengths, lengths) of a lane's centre-line
-        segments; None for an unknown lane or one of fewer than two points."""
+    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
+        """(direction [rad], position [m]) at the point of the lane's centre line nearest
+        to (x, y): the direction of its segment, and its distance along the lane from
+        the start (0 to the lane's length); None for an unknown lane."""
         try:
             shape = self.lane_shape(lane_id)
         except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
             return None
         if len(shape) < 2:
             return None
-        d = np.diff(shape, axis=0)
+        a, d = shape[:-1], np.diff(shape, axis=0)
         length2 = np.maximum((d * d).sum(axis=1), 1e-12)
-        return shape[:-1], d, length2, np.sqrt(length2)
-
-    def _nearest_on_lane(self, lane_id: str, x_m: float, y_m: float) -> tuple[int, float] | None:
-        """(segment, fraction along it) of the lane's centre-line point nearest (x, y)."""
-        segments = self._lane_segments(lane_id)
-        if segments is None:
-            return None
-        a, d, length2, _ = segments
         t = np.clip(((np.array([x_m, y_m]) - a) * d).sum(axis=1) / length2, 0.0, 1.0)
         nearest = a + t[:, None] * d
         k = int(np.argmin(np.hypot(*(nearest - (x_m, y_m)).T)))
-        return k, float(t[k])
-
-    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
-        """(direction [rad], position [m]) at the point of the lane's centre line nearest
-        to (x, y): the direction of its segment, and its distance along the lane from
-        the start (0 to the lane's length); None for an unknown lane."""
-        found = self._nearest_on_lane(lane_id, x_m, y_m)
-        segments = self._lane_segments(lane_id)
-        if found is None or segments is None:
-            return None
-        (k, t), (_, d, _, seg) = found, segments
-        return float(np.arctan2(d[k, 1], d[k, 0])), float(seg[:k].sum() + t * seg[k])
+        seg = np.sqrt(length2)
+        position = float(seg[:k].sum() + t[k] * seg[k])
+        return float(np.arctan2(d[k, 1], d[k, 0])), position
 
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
     def junction_successor(self, lane_id: str) -> str | None:
