@@ -642,8 +642,8 @@ class SumoBackend:
         a car's lane position when it changes lanes; where the lanes of an edge are not
         side by side at the same position (netconvert's invented ramps: two lanes of one
         length, shapes metres apart along the road), the car lands metres away, on the
-        car behind it (the race circuit, seeds 44 and 45). Call after `body_directions`
-        in the same step (its reads are used); vehicles inside a junction get inf."""
+        car behind it (the race circuit, seeds 44 and 45). Call after `lane_room` in the
+        same step (its reads are used)."""
         n = len(vehicle_ids)
         left, right = np.full(n, math.inf), np.full(n, math.inf)
         for i, vid in enumerate(vehicle_ids):
