@@ -65,8 +65,6 @@ class ActuationPort(Protocol):
         self, vehicle_ids: Sequence[str]
     ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
 
-    def crossing_room(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray]: ...
-
 
 @dataclass(frozen=True)
 class ActuationBatch:
@@ -235,9 +233,6 @@ class SublaneActuation:
         is bounded so that the body is inside the lane and the lanes after it when the
         car gets there (`fit_at_lane_end`): SUMO lets a car onto the next lane only so,
         and holds it at the junction's exit otherwise, in the way of the cars beside.
-        The centre does not cross into a lane of the edge where SUMO, which keeps the
-        lane position, would put the car elsewhere (`crossing_room`: an invented ramp's
-        lanes lie metres apart along the road at one position).
 
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
@@ -262,14 +257,7 @@ class SublaneActuation:
             side = batch.sidestep_m != 0.0
             step = batch.sidestep_m[side] / batch.dt_s
             lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
-        offset, room, to_end = sumo.lane_room(batch.vehicle_ids)
-        lateral = fit_at_lane_end(lateral, offset, room, to_end, speed, batch.dt_s)
-        left_m, right_m = sumo.crossing_room(batch.vehicle_ids)
-        lateral = np.clip(
-            lateral,
-            np.minimum((-right_m - offset) / batch.dt_s, 0.0),
-            np.maximum((left_m - offset) / batch.dt_s, 0.0),
-        )
+        lateral = fit_at_lane_end(lateral, *sumo.lane_room(batch.vehicle_ids), speed, batch.dt_s)
         around = batch.surroundings
         if around is not None:
             blocked = sideways_conflicts(

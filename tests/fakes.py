@@ -190,10 +190,6 @@ class FakeBackend:
         unbounded = np.full(len(vehicle_ids), np.inf)  # the fake's lane has no end
         return np.zeros(len(vehicle_ids)), unbounded, unbounded.copy()
 
-    def crossing_room(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray]:
-        unbounded = np.full(len(vehicle_ids), np.inf)  # the fake has one lane
-        return unbounded, unbounded.copy()
-
     def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
         return [(f, self.vehicles[f].standing_s) for f in self.yields.get(vehicle_id, [])]
 

@@ -43,10 +43,6 @@ LANE_CHANGE_REQUESTS_ONLY = 0
 #: right of way at junctions (8), braking for red lights (16): SUMO's default, and the
 #: same without yielding at junctions (it still keeps its distance to vehicles inside).
 DEFAULT_SPEED_MODE, TAKING_RIGHT_OF_WAY = 31, 31 - 8
-#: Sublane actuation: a car's centre does not cross into a lane of its edge where SUMO
-#: would put it more than this far from where it is [m] (it keeps this far inside the
-#: line [m]).
-CROSSING_JUMP_M, CROSSING_MARGIN_M = 1.0, 0.05
 #: Junction foes are looked for this far ahead of a vehicle [m].
 JUNCTION_FOES_M = 50.0
 #: Sublane actuation: slower sideways commands are a stop of the lateral move [m/s].
@@ -205,9 +201,6 @@ class SumoBackend:
         self._lane_grid: _LaneGrid | None = None
         self._lane_lengths: dict[str, float] = {}
         self._fit_widths: dict[str, float] = {}
-        self._lane_widths: dict[str, float] = {}
-        self._lane_counts: dict[str, int] = {}
-        self._crossing_jumps: dict[tuple[str, int, int], float] = {}
         self._lane_signals: dict[str, tuple[str, str, int]] = {}
         """Per vehicle: its lane and the light (id, link index) at that lane's end."""
         self._tls_states: dict[str, str] = {}
@@ -632,65 +625,6 @@ class SumoBackend:
                 front = veh.getLanePosition(vid)
             to_end[i] = self._lane_length(lane_id) - front
         return offset, room, to_end
-
-    def crossing_room(
-        self, vehicle_ids: Sequence[str]
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Per vehicle: how far its lateral offset may go to the left and to the right
-        [m] before its centre crosses into a lane of its edge where SUMO would put it
-        more than `CROSSING_JUMP_M` away from where it is (inf: no such line). SUMO keeps
-        a car's lane position when it changes lanes; where the lanes of an edge are not
-        side by side at the same position (netconvert's invented ramps: two lanes of one
-        length, shapes metres apart along the road), the car lands metres away, on the
-        car behind it (the race circuit, seeds 44 and 45). Call after `lane_room` in the
-        same step (its reads are used)."""
-        n = len(vehicle_ids)
-        left, right = np.full(n, math.inf), np.full(n, math.inf)
-        for i, vid in enumerate(vehicle_ids):
-            known = self._fronts.get(vid)
-            if known is None or not known[0] or known[0].startswith(":"):
-                continue
-            lane_id, front = known
-            edge, _, index = lane_id.rpartition("_")
-            width = self._lane_width(lane_id)
-            for side, out in ((1, left), (-1, right)):
-                beside = f"{edge}_{int(index) + side}"
-                if int(index) + side < 0 or not self._lane_exists(beside):
-                    continue
-                key = (lane_id, side, math.floor(front))
-                jump = self._crossing_jumps.get(key)
-                if jump is None:  # per metre of lane, at its middle: the same for any run
-                    jump = self._crossing_jumps[key] = self._crossing_jump_m(
-                        lane_id, beside, key[2] + 0.5, side
-                    )
-                if jump > CROSSING_JUMP_M:
-                    out[i] = 0.5 * width - CROSSING_MARGIN_M
-        return left, right
-
-    def _crossing_jump_m(self, lane_id: str, beside: str, front_m: float, side: int) -> float:
-        """How far from the car's centre line SUMO puts it on lane `beside` (to the
-        left: side 1), at the same lane position: the distance between the other lane's
-        centre there and where it would be if the lanes lay side by side."""
-        x, y = self._lane_point([lane_id], front_m)
-        ax, ay = self._lane_point([lane_id], front_m - 0.25)
-        bx, by = self._lane_point([lane_id], front_m + 0.25)
-        norm = math.hypot(bx - ax, by - ay) or 1.0
-        apart = 0.5 * (self._lane_width(lane_id) + self._lane_width(beside)) * side
-        ox, oy = self._lane_point([beside], front_m)
-        return math.hypot(ox - (x - (by - ay) / norm * apart), oy - (y + (bx - ax) / norm * apart))
-
-    def _lane_width(self, lane_id: str) -> float:
-        width = self._lane_widths.get(lane_id)
-        if width is None:
-            width = self._lane_widths[lane_id] = float(self._api.lane.getWidth(lane_id))
-        return width
-
-    def _lane_exists(self, lane_id: str) -> bool:
-        edge, _, index = lane_id.rpartition("_")
-        count = self._lane_counts.get(edge)
-        if count is None:
-            count = self._lane_counts[edge] = int(self._api.edge.getLaneNumber(edge))
-        return 0 <= int(index) < count
 
     def _fit_width(self, lane_id: str) -> float:
         """The narrowest of a lane and the lanes its links lead to (through and beyond a
