@@ -143,9 +143,9 @@ class ObstaclesAhead:
             will_stop = later >= 0 and bool(standing[later])
             other = world.ids[i]
             leader = m.vehicle_ahead
-            if leader is not None and leader.vehicle_id == other and later >= 0:
-                continue  # SUMO's leader: followed at its gap and speed
             if leader is not None and leader.vehicle_id == other:
+                if later >= 0:
+                    continue  # where SUMO's leader will be: followed at its gap and speed
                 # SUMO's leader, whose gap along the lanes is the exact one; unless SUMO
                 # drives the member (its safe speed keeps that gap) and the leader's body
                 # reaches nearer than the gap by more than a slice of the corridor (a car
