@@ -10,6 +10,23 @@ URBAN_GRID_NET = REPO / "networks" / "urban_grid" / "urban_grid.net.xml"
 PAPER_WORLD = REPO / "networks" / "paper_world"
 
 
+def planar_pair_through_b1(depart_s: float, depart_lane: int, end_s: float) -> dict:
+    """A scenario: two planar platoon cars (a route-following leader at 8 m/s, a laser
+    follower) east through the urban grid's junction B1. SUMO places them and does not
+    brake them: only the corridor check (`loop.obstacles`) stops them."""
+    return {
+        "simulation": {"step_s": 0.1, "end_s": end_s, "seed": 1},
+        "network": {"net_file": str(URBAN_GRID_NET)},
+        "platoons": [{
+            "id": "p", "members": 2, "spacing_m": 10.0, "depart_s": depart_s,
+            "depart_lane": depart_lane, "actuation": "planar",
+            "route": {"edges": ["A1B1", "B1C1", "C1right1"]},
+            "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0}},
+            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"}},
+        }],
+    }  # fmt: skip
+
+
 def build_net(
     folder: Path, nodes: str, edges: str, connections: str | None = None, *options: str
 ) -> Path:

@@ -14,7 +14,7 @@ import pytest
 import platoon_sumo.loop.obstacles as obstacles
 from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import URBAN_GRID_NET, add_standing_car
+from tests.helpers import add_standing_car, planar_pair_through_b1
 
 TURNER = "turner"
 #: The turner waits at the end of C1B1's left lane (westbound) and turns left into
@@ -58,17 +58,7 @@ class Turner(StepHook):
 
 
 def scenario() -> dict:
-    return {
-        "simulation": {"step_s": 0.1, "end_s": 170.0, "seed": 1},
-        "network": {"net_file": str(URBAN_GRID_NET)},
-        "platoons": [{
-            "id": "p", "members": 2, "spacing_m": 10.0, "depart_s": 35.0, "depart_lane": 1,
-            "actuation": "planar",  # placed cars: only the corridor check stops them
-            "route": {"edges": ["A1B1", "B1C1", "C1right1"]},
-            "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0}},
-            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"}},
-        }],
-    }  # fmt: skip
+    return planar_pair_through_b1(depart_s=35.0, depart_lane=1, end_s=170.0)
 
 
 def crossing_run(write_scenario, tmp_path) -> tuple[dict, pd.DataFrame, pd.DataFrame]:

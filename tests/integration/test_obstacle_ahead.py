@@ -15,7 +15,7 @@ import platoon_sumo.cosim as cosim
 from platoon_sumo.loop.context import StepHook, StepRecord
 from platoon_sumo.loop.obstacles import ObstaclesAhead
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import URBAN_GRID_NET, add_standing_car
+from tests.helpers import add_standing_car, planar_pair_through_b1
 
 BLOCKER = "blocker"
 #: The blocker's front bumper on A1B1's left lane (centre y 298.4, nearer than the right
@@ -45,17 +45,7 @@ class Blocker(StepHook):
 
 
 def scenario() -> dict:
-    return {
-        "simulation": {"step_s": 0.1, "end_s": 110.0, "seed": 1},
-        "network": {"net_file": str(URBAN_GRID_NET)},
-        "platoons": [{
-            "id": "p", "members": 2, "spacing_m": 10.0, "depart_s": 5.0, "depart_lane": 0,
-            "actuation": "planar",  # placed cars: only the corridor check stops them
-            "route": {"edges": ["A1B1", "B1C1", "C1right1"]},
-            "leader": {"type": "route_following", "params": {"cruise_speed_mps": 8.0}},
-            "follower": {"type": "laser_follower", "sensor": {"preset": "utm30lx"}},
-        }],
-    }  # fmt: skip
+    return planar_pair_through_b1(depart_s=5.0, depart_lane=0, end_s=110.0)
 
 
 def test_platoon_stops_before_a_car_reaching_into_its_lane(write_scenario, tmp_path):
