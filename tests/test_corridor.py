@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from shapely.geometry import Polygon
+from shapely.ops import unary_union
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import corridor_intrusions, empty_outputs
@@ -38,10 +39,10 @@ def oracle(samples, sample_s, half_width, rects, self_index):
     return found
 
 
-def kernel(path, half_width, rects, self_index, owners=None):
+def kernel(path, half_width, rects, self_index, owners=None, body_m=0.0):
     """The kernel on one path, the corridor from its start to its end."""
     outputs = empty_outputs(64)
-    member = np.array([[0, 0.0, 0.0, 1e9, path.spacing_m, 1, half_width]])
+    member = np.array([[0, 0.0, 0.0, 1e9, path.spacing_m, 1, half_width, body_m]])
     owners = np.arange(len(rects)) if owners is None else np.asarray(owners)
     count = corridor_intrusions(
         path.xy_m, path.left_normals, np.array([0, len(path.xy_m)]), member,
@@ -100,6 +101,56 @@ def _grazing(samples, half_width, rect) -> bool:
     return min(p.distance(polygon) for p in corridor) < 1e-6 or any(
         0 < p.intersection(polygon).area < 1e-6 for p in corridor
     )
+
+
+def swept_body(samples: np.ndarray, step: float, body_m: float, half_width: float):
+    """What a body `body_m` long sweeps while its front bumper runs along the samples,
+    its back on them `body_m` behind (SUMO draws a car from its back to its front)."""
+    back = round(body_m / step)
+    return unary_union(
+        [
+            slice_polygon(samples[i - back], samples[i], half_width)
+            for i in range(back, len(samples))
+        ]
+    )
+
+
+def test_the_inside_of_a_turn_swept_by_the_body_is_part_of_the_corridor():
+    """A 4.5 m car turning left on a 6 m radius: its middle runs 0.44 m inside its front
+    bumper's path. A post standing 0.25 m into that bulge, outside the front's corridor
+    (1.1 m each side), is in the way only when the body is taken into account."""
+    path, samples, _ = arc(6.0, 9.0, 0.25)
+    angle = 4.5 / 6.0  # beside the path's point 4.5 m along, inside the turn
+    centre = 6.0 - 1.1 - 0.44 + 0.25 - 0.25  # the post's outer face 0.25 m into the bulge
+    post = [centre * math.sin(angle), 6.0 - centre * math.cos(angle), angle - math.pi / 2]
+    rect = np.array([[*post, 0.5, 0.5]])
+    polygon = Polygon(rectangle_corners(rect)[0])
+    assert swept_body(samples, 0.25, 4.5, 1.1).intersection(polygon).area > 0.1
+    assert kernel(path, 1.1, rect, -1) == {}
+    assert set(kernel(path, 1.1, rect, -1, body_m=4.5)) == {0}
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    radius=st.sampled_from([6.0, -8.0, 15.0, math.inf]),
+    cars=st.lists(
+        st.tuples(st.floats(-3, 14), st.floats(-8, 8), st.floats(-math.pi, math.pi)),
+        min_size=1, max_size=6,
+    ),
+)  # fmt: skip
+def test_no_car_in_the_swept_body_is_missed(radius, cars):
+    """Against shapely: every rectangle reaching more than 2 cm into what the body sweeps
+    on a tight arc (past its first body length, where the body is on the path) is
+    found; on a straight the body adds nothing."""
+    path, samples, _ = arc(radius, 14.0, 0.25)
+    rects = np.array([[x, y, yaw, 4.5, 1.8] for x, y, yaw in cars])
+    got = kernel(path, 1.1, rects, -1, body_m=4.5)
+    swept = swept_body(samples, 0.25, 4.5, 1.1)
+    for k, polygon in enumerate(Polygon(c) for c in rectangle_corners(rects)):
+        if swept.intersection(polygon).area > 0.02 * 1.8:
+            assert k in got
+    if math.isinf(radius):
+        assert got == kernel(path, 1.1, rects, -1)
 
 
 def test_a_car_crossing_ahead_is_no_obstacle_if_it_has_left_before_arrival():

@@ -67,14 +67,15 @@ class ObstaclesAhead:
 
     def __init__(self) -> None:
         self._outputs = empty_outputs(64)
-        self._rows: dict[tuple[int, str], tuple[float, float, float, float, float]] = {}
+        self._rows: dict[tuple[int, str], tuple[float, float, float, float, float, float]] = {}
         self._paths: list[RoutePath] = []
         self._stacked: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None
         self._lanes: JunctionLanes | None = None
 
-    def _constants(self, m: Member) -> tuple[float, float, float, float, float]:
-        """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width) of
-        a member's corridor: the same for every member of a platoon on one path."""
+    def _constants(self, m: Member) -> tuple[float, float, float, float, float, float]:
+        """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width,
+        body length) of a member's corridor: the same for every member of a platoon on
+        one path."""
         key = (id(m.path), m.platoon_id)
         row = self._rows.get(key)
         if row is None:
@@ -86,7 +87,8 @@ class ObstaclesAhead:
             hw = 0.5 * config.vehicle.width_m + CORRIDOR_MARGIN_M
             stride = max(1, int(min(SLICE_M, hw) / path.spacing_m))
             brake = 1.0 / (2.0 * config.supervisor.comfort_decel_mps2)
-            row = self._rows[key] = (index, brake, path.spacing_m, stride, hw)
+            length = config.vehicle.length_m
+            row = self._rows[key] = (index, brake, path.spacing_m, stride, hw, length)
         return row
 
     def __call__(self, ctx: StepContext) -> None:
