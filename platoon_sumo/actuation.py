@@ -28,8 +28,9 @@ from typing import ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.fault import PLACED_REACTION_S
 from platoon_sumo.geometry import wrap_angle
-from platoon_sumo.kernels.sideways import sideways_conflicts
+from platoon_sumo.kernels.sideways import landing_conflicts, sideways_conflicts
 from platoon_sumo.registry import Registry
 from platoon_sumo.vehicles import KinematicState, MotionLimits, VehicleModel
 
@@ -64,6 +65,21 @@ class ActuationPort(Protocol):
     def lane_room(
         self, vehicle_ids: Sequence[str]
     ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
+
+    def sumo_lateral_speeds(
+        self, vehicle_ids: Sequence[str], offset_m: FloatArray
+    ) -> FloatArray: ...
+
+    def lane_change_landings(
+        self,
+        vehicle_ids: Sequence[str],
+        offset_m: FloatArray,
+        lateral_mps: FloatArray,
+        speed_mps: FloatArray,
+        dt_s: float,
+    ) -> FloatArray: ...
+
+    def hold_lateral(self, vehicle_ids: Sequence[str]) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -257,17 +273,57 @@ class SublaneActuation:
             side = batch.sidestep_m != 0.0
             step = batch.sidestep_m[side] / batch.dt_s
             lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
-        lateral = fit_at_lane_end(lateral, *sumo.lane_room(batch.vehicle_ids), speed, batch.dt_s)
+        offset, room, to_end = sumo.lane_room(batch.vehicle_ids)
+        lateral = fit_at_lane_end(lateral, offset, room, to_end, speed, batch.dt_s)
         around = batch.surroundings
+        held: list[str] = []
         if around is not None:
+            # SUMO moves the cars handed over to it (`lateral` is ours for the others)
+            theirs = sumo.sumo_lateral_speeds(batch.vehicle_ids, offset)
+            sumos = ~np.isnan(theirs)
+            moving = np.where(sumos, theirs, lateral)
             blocked = sideways_conflicts(
                 around.footprints, around.speed_mps, around.rows,
-                lateral * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
+                moving * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
                 batch.dt_s,
             )  # fmt: skip
+            blocked |= _jumps_into_others(sumo, batch, around, offset, moving, speed)
             lateral[blocked] = 0.0
+            held = [batch.vehicle_ids[k] for k in np.flatnonzero(blocked & sumos).tolist()]
         sumo.set_lateral_speeds(batch.vehicle_ids, lateral)
+        if held:
+            sumo.hold_lateral(held)
         return ActuationResult(None, {})
+
+
+def _jumps_into_others(
+    sumo: ActuationPort,
+    batch: ActuationBatch,
+    around: Surroundings,
+    offset_m: FloatArray,
+    lateral_mps: FloatArray,
+    speed_mps: FloatArray,
+) -> NDArray[np.bool_]:
+    """Per car: would SUMO put its lane change in this step down away from where it
+    drives (`lane_change_landings`), into another car or within its reach (both driving
+    on for `PLACED_REACTION_S`, `SIDEWAYS_CLEARANCE_M` apart)? Such a sideways move
+    waits. Where the landing is clear the jump is left to SUMO: a rule that held every
+    such change stranded platoons on a ramp whose lanes lie apart along its length."""
+    lim, dt = batch.limits, batch.dt_s
+    reached = np.clip(
+        batch.speed_cmd_mps,
+        np.maximum(speed_mps - lim.max_decel_mps2 * dt, 0.0),
+        speed_mps + lim.max_accel_mps2 * dt,
+    )
+    landings = sumo.lane_change_landings(batch.vehicle_ids, offset_m, lateral_mps, reached, dt)
+    out = np.zeros(len(batch.vehicle_ids), dtype=np.bool_)
+    jumping = np.flatnonzero(~np.isnan(landings[:, 0]))
+    if len(jumping):
+        out[jumping] = landing_conflicts(
+            around.footprints, around.speed_mps, around.rows[jumping], landings[jumping],
+            reached[jumping], PLACED_REACTION_S, SIDEWAYS_CLEARANCE_M, dt,
+        )  # fmt: skip
+    return out
 
 
 def fit_at_lane_end(

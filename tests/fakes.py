@@ -42,6 +42,7 @@ class FakeBackend:
         self.arrived: list[str] = []
         self.removed: list[tuple[str, bool]] = []
         self.lateral_speeds: dict[str, float] = {}
+        self.held_lateral: list[str] = []
         self.vanished: list[str] = []
         """Vehicles someone else took out of SUMO since the last step."""
         self.speed_commands: dict[str, float] = {}
@@ -189,6 +190,22 @@ class FakeBackend:
     def lane_room(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray, FloatArray]:
         unbounded = np.full(len(vehicle_ids), np.inf)  # the fake's lane has no end
         return np.zeros(len(vehicle_ids)), unbounded, unbounded.copy()
+
+    def sumo_lateral_speeds(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> FloatArray:
+        return np.full(len(vehicle_ids), np.nan)  # the fake hands no car over to SUMO
+
+    def lane_change_landings(
+        self,
+        vehicle_ids: Sequence[str],
+        offset_m: FloatArray,
+        lateral_mps: FloatArray,
+        speed_mps: FloatArray,
+        dt_s: float,
+    ) -> FloatArray:
+        return np.full((len(vehicle_ids), 5), np.nan)  # the fake's lane is one: no jumps
+
+    def hold_lateral(self, vehicle_ids: Sequence[str]) -> None:
+        self.held_lateral.extend(vehicle_ids)
 
     def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
         return [(f, self.vehicles[f].standing_s) for f in self.yields.get(vehicle_id, [])]

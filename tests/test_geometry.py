@@ -24,7 +24,7 @@ from platoon_sumo.geometry import (
     wrap_angle,
     yaw_to_sumo_angle_deg,
 )
-from platoon_sumo.kernels.sideways import sideways_conflicts
+from platoon_sumo.kernels.sideways import landing_conflicts, sideways_conflicts
 
 SETTINGS = settings(deadline=None, max_examples=200)
 
@@ -403,3 +403,59 @@ def test_sideways_conflicts_against_shapely(others, shift, margin):
         assert not hit
     if any(before.distance(o) > 0.0 and after.buffer(-0.002).intersects(o) for o in others_):
         assert hit
+
+
+def moved(rect: tuple[float, ...], speed_mps: float, time_s: float, grow_m: float = 0.0):
+    """A rectangle driven on along its yaw for `time_s`, `grow_m` larger on every side."""
+    x, y, a, length, width = rect
+    dx, dy = math.cos(a) * speed_mps * time_s, math.sin(a) * speed_mps * time_s
+    return (x + dx, y + dy, a, length + 2 * grow_m, width + 2 * grow_m)
+
+
+@SETTINGS
+@given(
+    others=st.lists(
+        st.tuples(rectangle, st.floats(0.0, 15.0, allow_nan=False)), min_size=1, max_size=4
+    ),
+    landing=rectangle,
+    landing_speed=st.floats(0.0, 15.0, allow_nan=False),
+)
+def test_landing_conflicts_as_shapely_sees_the_rectangles_drive_on(others, landing, landing_speed):
+    """A landing conflicts when, `margin` larger, it overlaps another rectangle now or at
+    any step within the horizon, both driving on along their yaws (shapely on the moved
+    polygons); row 0 is the landing car's own and never counts. Contacts of zero area
+    may go either way."""
+    rects = np.array([landing, *(r for r, _ in others)])
+    speeds = np.array([landing_speed, *(v for _, v in others)])
+    horizon, margin, step = 1.0, 0.2, 0.25
+    got = landing_conflicts(
+        rects, speeds, np.array([0]), np.array([landing]), np.array([landing_speed]),
+        horizon, margin, step,
+    )[0]  # fmt: skip
+    areas, gaps = [], []
+    for t in np.arange(0.0, horizon + 1e-9, step):
+        mine = polygon(moved(landing, landing_speed, t, margin))
+        for r, v in others:
+            other = polygon(moved(r, v, t))
+            areas.append(mine.intersection(other).area)
+            gaps.append(mine.distance(other))
+    if max(areas) > 1e-6:
+        assert got
+    elif min(gaps) > 1e-6:
+        assert not got
+
+
+def test_a_landing_in_reach_of_a_car_coming_up_behind_conflicts():
+    """Put down 3 m ahead of a car closing at 6 m/s more: in its way within a second."""
+    landing = (0.0, 0.0, 0.0, 4.5, 1.8)
+    behind = (-7.5, 0.0, 0.0, 4.5, 1.8)  # 3 m gap
+    rects = np.array([landing, behind])
+    args = (np.array([0]), np.array([landing]))
+
+    def check(own_mps: float, behind_mps: float) -> bool:
+        speeds = np.array([own_mps, behind_mps])
+        return bool(landing_conflicts(rects, speeds, *args, np.array([own_mps]), 1.0, 0.2, 0.1)[0])
+
+    assert check(2.0, 8.0)
+    assert not check(2.0, 2.0)
+    assert not check(8.0, 2.0)  # it drives away from it

@@ -87,3 +87,49 @@ def _deeper(
         if after > before + DEEPER_M:
             return True
     return False
+
+
+@njit(cache=True)
+def landing_conflicts(
+    rects: np.ndarray,
+    speed_mps: np.ndarray,
+    subjects: np.ndarray,
+    landings: np.ndarray,
+    landing_speed_mps: np.ndarray,
+    horizon_s: float,
+    margin_m: float,
+    step_s: float,
+) -> np.ndarray:
+    """Would a vehicle put down at each landing rectangle (rows: centre x, y, yaw,
+    length, width; subject k is row `subjects[k]` of `rects`, skipped) be, `margin_m`
+    larger on every side, in another vehicle now or at the end of any step of `step_s`
+    within `horizon_s`, every vehicle driving on along its yaw at its speed (the landed
+    one at `landing_speed_mps[k]`)?"""
+    n = rects.shape[0]
+    out = np.zeros(landings.shape[0], dtype=np.bool_)
+    samples = max(1, math.ceil(horizon_s / step_s - 1e-9))
+    for k in range(landings.shape[0]):
+        lx, ly, lyaw = landings[k, 0], landings[k, 1], landings[k, 2]
+        lc, ls = math.cos(lyaw), math.sin(lyaw)
+        lhl, lhw = 0.5 * landings[k, 3] + margin_m, 0.5 * landings[k, 4] + margin_m
+        lv = landing_speed_mps[k]
+        for i in range(n):
+            if i == subjects[k]:
+                continue
+            c, s, v = math.cos(rects[i, 2]), math.sin(rects[i, 2]), speed_mps[i]
+            hl, hw = 0.5 * rects[i, 3], 0.5 * rects[i, 4]
+            near = math.hypot(lhl, lhw) + math.hypot(hl, hw) + (abs(v) + abs(lv)) * horizon_s
+            if math.hypot(rects[i, 0] - lx, rects[i, 1] - ly) > near:
+                continue
+            for sample in range(samples + 1):
+                t = min(sample * step_s, horizon_s)
+                depth = rectangle_depth(
+                    lx + lc * lv * t, ly + ls * lv * t, lc, ls, lhl, lhw,
+                    rects[i, 0] + c * v * t, rects[i, 1] + s * v * t, c, s, hl, hw,
+                )  # fmt: skip
+                if depth > 0.0:
+                    out[k] = True
+                    break
+            if out[k]:
+                break
+    return out

@@ -12,6 +12,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.actuation import ActuationPort
 from platoon_sumo.world import LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 FloatArray = NDArray[np.float64]
@@ -24,7 +25,9 @@ RouteContext = tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]
 StandingVehicle = tuple[str, str, float, float, float]
 
 
-class Backend(Protocol):
+class Backend(ActuationPort, Protocol):
+    """The loop's SUMO: the actuators' part (`ActuationPort`) and the rest."""
+
     @property
     def time_s(self) -> float: ...
 
@@ -92,31 +95,6 @@ class Backend(Protocol):
         """Let SUMO drive the vehicle into junctions without yielding (`take`; it still
         keeps its distance to vehicles inside), or yield again."""
         ...
-
-    def move(
-        self,
-        vehicle_ids: Sequence[str],
-        front_x_m: FloatArray,
-        front_y_m: FloatArray,
-        yaw_rad: FloatArray,
-        speed_mps: FloatArray,
-    ) -> dict[str, str]: ...
-
-    def set_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
-
-    def request_lane_changes(self, requests: dict[str, int]) -> None: ...
-
-    def set_lateral_speeds(self, vehicle_ids: Sequence[str], speed_mps: FloatArray) -> None: ...
-
-    def body_directions(
-        self, vehicle_ids: Sequence[str], ahead_m: FloatArray
-    ) -> tuple[FloatArray, FloatArray]: ...
-
-    def in_junctions(self, vehicle_ids: Sequence[str]) -> NDArray[np.bool_]: ...
-
-    def lane_room(
-        self, vehicle_ids: Sequence[str]
-    ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
 
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""

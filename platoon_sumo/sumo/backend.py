@@ -71,6 +71,10 @@ HANDED_OVER_LATERAL_MPS = 1.0
 #: A car whose lane change SUMO made is steered by us again within this distance of
 #: its new lane's centre [m].
 HANDED_BACK_WITHIN_M = 0.3
+#: Sublane actuation: a lane change that SUMO, keeping the lane position, puts down
+#: farther than this from where the car drives to [m] is a jump
+#: (`SumoBackend.lane_change_landings`).
+LANDING_SHIFT_M = 0.3
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 #: Lane actuation: a controller's lane request (a change, or keeping the lane against
@@ -212,6 +216,11 @@ class SumoBackend:
         """Sublane actuation: this step's lane and front bumper position on it (SUMO's
         lane position), read by `body_directions` for `in_junctions` and `lane_room`."""
         self._lane_edges: dict[str, str] = {}
+        self._lane_counts: dict[str, int] = {}
+        self._lane_widths: dict[str, float] = {}
+        self._lateral_held: set[str] = set()
+        """Sublane actuation: vehicles SUMO steers whose lateral move is held this step
+        (`hold_lateral`)."""
         self._handed_over: set[str] = set()
         self._slow_since: dict[str, float] = {}
         """Sublane actuation: vehicles whose lane change SUMO makes (`_hand_over`)."""
@@ -474,7 +483,10 @@ class SumoBackend:
         return np.asarray(self._api.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
 
     def lane_width(self, lane_id: str) -> float:
-        return float(self._api.lane.getWidth(lane_id))
+        width = self._lane_widths.get(lane_id)
+        if width is None:
+            width = self._lane_widths[lane_id] = float(self._api.lane.getWidth(lane_id))
+        return width
 
     def departed_ids(self) -> tuple[str, ...]:
         """Vehicles SUMO inserted in the last step (read once, in `step`)."""
@@ -588,6 +600,10 @@ class SumoBackend:
         `LANE_END_REACH_M` (SUMO's best lanes) is handed to SUMO's own lane change
         instead (`_hand_over`) until it is on a lane that continues, near its centre."""
         veh = self._api.vehicle
+        for vid in self._lateral_held:  # held for one step only
+            if vid in self._handed_over:
+                veh.setMaxSpeedLat(vid, HANDED_OVER_LATERAL_MPS)
+        self._lateral_held.clear()
         for vid, speed in zip(vehicle_ids, speed_mps.tolist(), strict=True):
             if self._hand_over(vid):
                 continue
@@ -703,6 +719,104 @@ class SumoBackend:
             veh.setLaneChangeMode(vid, LANE_CHANGE_REQUESTS_ONLY)
             self._handed_over.discard(vid)
         return needs
+
+    def sumo_lateral_speeds(
+        self, vehicle_ids: Sequence[str], offset_m: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """Sublane actuation: the sideways speed (left +) SUMO may move each car it steers
+        (`_hand_over`) at in the next step: `HANDED_OVER_LATERAL_MPS` the way it moves
+        now, or towards the nearer edge of its lane (`offset_m`, from `lane_room`) while
+        it does not; NaN for the cars we steer."""
+        veh = self._api.vehicle
+        out = np.full(len(vehicle_ids), np.nan)
+        for i, vid in enumerate(vehicle_ids):
+            if vid in self._handed_over:
+                now = veh.getLateralSpeed(vid)
+                out[i] = math.copysign(HANDED_OVER_LATERAL_MPS, now if now else offset_m[i])
+        return out
+
+    def lane_change_landings(
+        self,
+        vehicle_ids: Sequence[str],
+        offset_m: NDArray[np.float64],
+        lateral_mps: NDArray[np.float64],
+        speed_mps: NDArray[np.float64],
+        dt_s: float,
+    ) -> NDArray[np.float64]:
+        """Sublane actuation: for each car whose sideways move (`lateral_mps`, left +)
+        crosses into the next lane of its edge in this step, where SUMO will put it down
+        when that is not beside where it drives to: its footprint (centre x, y, yaw,
+        length, width; turned as now); NaN rows for the others. `offset_m` are the
+        lateral offsets (`lane_room`, call it first in the same step) and `speed_mps` the
+        speeds the cars reach in the step.
+
+        SUMO's sublane model changes a car's lane when its centre crosses the lane's edge
+        and keeps its lane position: where the lanes of an edge are not side by side at
+        one lane position (a tight curve with lanes of different lengths, a ramp
+        netconvert added) the car jumps along the road, onto whatever is there: on the
+        race circuit's invented on-ramp (four 10 m lanes) a leader SUMO moved over at
+        1 m/s jumped 4.5 m back onto its follower (seed 44, 175.1 s)."""
+        veh = self._api.vehicle
+        out = np.full((len(vehicle_ids), 5), np.nan)
+        for i, vid in enumerate(vehicle_ids):
+            known = self._fronts.get(vid)
+            if known is None or known[0].startswith(":"):
+                continue  # no lane, or inside a junction: no lane change
+            lane_id, front = known
+            half = 0.5 * self.lane_width(lane_id)
+            lateral = float(offset_m[i] + lateral_mps[i] * dt_s)
+            if abs(lateral) <= half:
+                continue
+            direction = 1 if lateral > 0.0 else -1
+            edge = self._lane_edge(lane_id)
+            index = int(lane_id[len(edge) + 1 :]) + direction
+            if not 0 <= index < self._lane_count(edge):
+                continue
+            target = f"{edge}_{index}"
+            position = min(front + float(speed_mps[i]) * dt_s, self._lane_length(lane_id))
+            x, y = self._lane_offset_point(lane_id, position, lateral)
+            shift = lateral - direction * (half + 0.5 * self.lane_width(target))
+            lx, ly = self._lane_offset_point(target, position, shift)
+            if math.hypot(lx - x, ly - y) <= LANDING_SHIFT_M:
+                continue  # the lanes lie side by side here
+            length, width = self._geometry.get(vid) or (veh.getLength(vid), veh.getWidth(vid))
+            # turned as now: SUMO's angle follows the lateral motion, not the lane there
+            yaw = math.radians(90.0 - veh.getAngle(vid))
+            half_length = 0.5 * length
+            out[i] = (lx - half_length * math.cos(yaw), ly - half_length * math.sin(yaw),
+                      yaw, length, width)  # fmt: skip
+        return out
+
+    def hold_lateral(self, vehicle_ids: Sequence[str]) -> None:
+        """Sublane actuation, after `set_lateral_speeds` (which stops our own sideways
+        moves with a lateral speed of 0): no sideways move in this step either for
+        these cars that SUMO steers (`_hand_over`), its lane change waits."""
+        veh = self._api.vehicle
+        for vid in vehicle_ids:
+            if vid in self._handed_over:
+                veh.setMaxSpeedLat(vid, 0.0)
+                self._lateral_held.add(vid)
+
+    def _lane_offset_point(
+        self, lane_id: str, pos_m: float, offset_m: float
+    ) -> tuple[float, float]:
+        """SUMO's point `offset_m` left of lane position `pos_m` (a car's front bumper at
+        that lateral offset: beside the shape's segment there)."""
+        xs, ys, cum, scale = self._lane_polyline(lane_id)
+        at = pos_m * scale
+        j = min(max(bisect.bisect_left(cum, at) - 1, 0), len(cum) - 2)
+        dx, dy = xs[j + 1] - xs[j], ys[j + 1] - ys[j]
+        seg = math.hypot(dx, dy)
+        if seg <= 0.0:
+            return xs[j], ys[j]
+        t = (at - cum[j]) / seg
+        return xs[j] + dx * t - dy / seg * offset_m, ys[j] + dy * t + dx / seg * offset_m
+
+    def _lane_count(self, edge: str) -> int:
+        count = self._lane_counts.get(edge)
+        if count is None:
+            count = self._lane_counts[edge] = int(self._api.edge.getLaneNumber(edge))
+        return count
 
     def _too_steep(self, vid: str, lane_id: str, offset: int, remaining_m: float) -> bool:
         """Would steering this car `offset` lanes over (left +) within `remaining_m`
@@ -831,6 +945,7 @@ class SumoBackend:
         self._lanes_behind.pop(vid, None)
         self._fronts.pop(vid, None)
         self._handed_over.discard(vid)
+        self._lateral_held.discard(vid)
         self._slow_since.pop(vid, None)
         self._kept_on.pop(vid, None)
         self._route_lanes.pop(vid, None)
