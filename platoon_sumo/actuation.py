@@ -254,7 +254,9 @@ class SublaneActuation:
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
         `SIDEWAYS_HORIZON_S` (every car driving on along its yaw) is not made (the
         lateral speed is 0; SUMO's drivers let our commands through as they come and do
-        not check them)."""
+        not check them); nor is SUMO's own move of a car handed over to its lane change
+        (`sumo.hold_lateral`). Neither is a lane change that SUMO would put down onto
+        another car, away from where the car drives (`_jumps_into_others`)."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
         speed = np.maximum(batch.state.speed_mps, 0.0)
         new = batch.model.step(

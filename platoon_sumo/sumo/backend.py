@@ -726,7 +726,8 @@ class SumoBackend:
         """Sublane actuation: the sideways speed (left +) SUMO may move each car it steers
         (`_hand_over`) at in the next step: `HANDED_OVER_LATERAL_MPS` the way it moves
         now, or towards the nearer edge of its lane (`offset_m`, from `lane_room`) while
-        it does not; NaN for the cars we steer."""
+        it does not; NaN for the cars we steer. The cars handed over are those of the
+        last step (`set_lateral_speeds` hands over and back)."""
         veh = self._api.vehicle
         out = np.full(len(vehicle_ids), np.nan)
         for i, vid in enumerate(vehicle_ids):
