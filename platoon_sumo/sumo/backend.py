@@ -775,9 +775,9 @@ class SumoBackend:
                 continue
             target = f"{edge}_{index}"
             position = min(front + float(speed_mps[i]) * dt_s, self._lane_length(lane_id))
-            x, y = self._lane_offset_point(lane_id, position, lateral)
+            x, y = self._lane_point([lane_id], position, lateral)
             shift = lateral - direction * (half + 0.5 * self.lane_width(target))
-            lx, ly = self._lane_offset_point(target, position, shift)
+            lx, ly = self._lane_point([target], position, shift)
             if math.hypot(lx - x, ly - y) <= LANDING_SHIFT_M:
                 continue  # the lanes lie side by side here
             length, width = self._geometry.get(vid) or (veh.getLength(vid), veh.getWidth(vid))
@@ -797,21 +797,6 @@ class SumoBackend:
             if vid in self._handed_over:
                 veh.setMaxSpeedLat(vid, 0.0)
                 self._lateral_held.add(vid)
-
-    def _lane_offset_point(
-        self, lane_id: str, pos_m: float, offset_m: float
-    ) -> tuple[float, float]:
-        """SUMO's point `offset_m` left of lane position `pos_m` (a car's front bumper at
-        that lateral offset: beside the shape's segment there)."""
-        xs, ys, cum, scale = self._lane_polyline(lane_id)
-        at = pos_m * scale
-        j = min(max(bisect.bisect_left(cum, at) - 1, 0), len(cum) - 2)
-        dx, dy = xs[j + 1] - xs[j], ys[j + 1] - ys[j]
-        seg = math.hypot(dx, dy)
-        if seg <= 0.0:
-            return xs[j], ys[j]
-        t = (at - cum[j]) / seg
-        return xs[j] + dx * t - dy / seg * offset_m, ys[j] + dy * t + dx / seg * offset_m
 
     def _lane_count(self, edge: str) -> int:
         count = self._lane_counts.get(edge)
@@ -896,9 +881,12 @@ class SumoBackend:
         bx, by = self._lane_point(lanes, front_m - length_m)
         return math.atan2(fy - by, fx - bx)
 
-    def _lane_point(self, lanes: list[str], pos_m: float) -> tuple[float, float]:
+    def _lane_point(
+        self, lanes: list[str], pos_m: float, offset_m: float = 0.0
+    ) -> tuple[float, float]:
         """The point `pos_m` along lanes[0] (SUMO's lane positions), on the lanes before
-        it (lanes[1:], newest first) when negative."""
+        it (lanes[1:], newest first) when negative; `offset_m` left of it, beside the
+        shape's segment there (where SUMO puts a front bumper at that lateral offset)."""
         k = 0
         while pos_m < 0.0 and k + 1 < len(lanes):
             k += 1
@@ -910,7 +898,11 @@ class SumoBackend:
         j = min(max(bisect.bisect_left(cum, at) - 1, 0), len(cum) - 2)
         seg = cum[j + 1] - cum[j]
         t = (at - cum[j]) / seg if seg > 0 else 0.0
-        return xs[j] + (xs[j + 1] - xs[j]) * t, ys[j] + (ys[j + 1] - ys[j]) * t
+        dx, dy = xs[j + 1] - xs[j], ys[j + 1] - ys[j]
+        x, y = xs[j] + dx * t, ys[j] + dy * t
+        if offset_m and seg > 0:
+            x, y = x - dy / seg * offset_m, y + dx / seg * offset_m
+        return x, y
 
     def _lane_polyline(self, lane_id: str) -> tuple[list[float], list[float], list[float], float]:
         """Shape (x and y), cumulative length along it, and shape length per unit of lane
