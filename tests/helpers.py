@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+from platoon_sumo.loop.context import StepHook, StepRecord, VehicleRecord
+
 REPO = Path(__file__).resolve().parents[1]
 URBAN_GRID_NET = REPO / "networks" / "urban_grid" / "urban_grid.net.xml"
 PAPER_WORLD = REPO / "networks" / "paper_world"
@@ -59,3 +61,36 @@ def add_standing_car(vehicle_id: str, edges: list[str], width_m: float, depart_l
                         depart="now", departLane=depart_lane, departPos=depart_pos)  # fmt: skip
     libsumo.vehicle.setSpeedMode(vehicle_id, 0)
     libsumo.vehicle.setLaneChangeMode(vehicle_id, 0)
+
+
+class KeptByTheLeader(StepHook):
+    """A SUMO car (`add_standing_car`) on lane `lane` of `edge`, inserted when the
+    platoon car `leader_id` is first seen and put every step where `where` says, at the
+    leader's speed, facing east, until `until_s`, then removed. `state`: "waiting",
+    "there", "gone"."""
+
+    def __init__(self, car_id: str, edge: str, lane: int, leader_id: str, until_s: float):
+        self.car_id, self.edge, self.lane = car_id, edge, lane
+        self.leader_id, self.until_s = leader_id, until_s
+        self.state = "waiting"
+
+    def where(self, leader: VehicleRecord) -> tuple[float, float]:
+        """Where the car stands this step (front bumper x, y) [m]."""
+        raise NotImplementedError
+
+    def on_step(self, record: StepRecord) -> None:
+        import libsumo
+
+        leader = next((v for v in record.vehicles if v.id == self.leader_id), None)
+        if leader is None or self.state == "gone":
+            return
+        if self.state == "waiting":
+            add_standing_car(self.car_id, [self.edge], 1.8, str(self.lane), "0")
+            self.state = "there"
+        if record.time_s >= self.until_s:
+            libsumo.vehicle.remove(self.car_id)
+            self.state = "gone"
+            return
+        x, y = self.where(leader)
+        libsumo.vehicle.moveToXY(self.car_id, self.edge, self.lane, x, y, 90.0, keepRoute=1)
+        libsumo.vehicle.setPreviousSpeed(self.car_id, leader.speed_mps)

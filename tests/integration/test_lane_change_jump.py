@@ -19,9 +19,9 @@ import pandas as pd
 import pytest
 
 from platoon_sumo import actuation
-from platoon_sumo.loop.context import StepHook, StepRecord
+from platoon_sumo.loop.context import VehicleRecord
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import REPO, add_standing_car, build_net
+from tests.helpers import REPO, KeptByTheLeader, build_net
 
 PLUGINS = REPO / "tests" / "plugins"
 NODES = '<nodes><node id="W" x="0" y="0"/><node id="E" x="400" y="0"/></nodes>'
@@ -40,30 +40,19 @@ def plugins_on_path(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(PLUGINS))
 
 
-class AtTheLanding(StepHook):
+class AtTheLanding(KeptByTheLeader):
     """A car kept on the left lane at the leader's lane position: where SUMO puts the
     leader down when it changes lanes."""
 
     def __init__(self) -> None:
-        self.state = "waiting"
+        super().__init__(BLOCKER, "WE", 1, "p.0", BLOCKED_UNTIL_S)
         self.behind_m: list[float] = []
-        """How far behind the leader's front bumper the blocker's stood [m]."""
+        """How far behind the leader's front bumper the blocker has stood [m]."""
 
-    def on_step(self, record: StepRecord) -> None:
-        leader = next((v for v in record.vehicles if v.id == "p.0"), None)
-        if leader is None or self.state == "gone":
-            return
-        if self.state == "waiting":
-            add_standing_car(BLOCKER, ["WE"], 1.8, "1", "0")
-            self.state = "there"
-        if record.time_s >= BLOCKED_UNTIL_S:
-            libsumo.vehicle.remove(BLOCKER)
-            self.state = "gone"
-            return
+    def where(self, leader: VehicleRecord) -> tuple[float, float]:
         x, y = libsumo.simulation.convert2D("WE", libsumo.vehicle.getLanePosition("p.0"), 1)
-        libsumo.vehicle.moveToXY(BLOCKER, "WE", 1, x, y, 90.0, keepRoute=1)
-        libsumo.vehicle.setPreviousSpeed(BLOCKER, leader.speed_mps)
         self.behind_m.append(leader.front_x_m - x)
+        return x, y
 
 
 def run_jump(tmp_path, write_scenario) -> tuple[dict, pd.DataFrame, AtTheLanding]:

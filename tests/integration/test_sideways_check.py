@@ -7,15 +7,14 @@ from __future__ import annotations
 
 import json
 
-import libsumo
 import numpy as np
 import pandas as pd
 import pytest
 
 from platoon_sumo import actuation
-from platoon_sumo.loop.context import StepHook, StepRecord
+from platoon_sumo.loop.context import VehicleRecord
 from platoon_sumo.runner import load_plan, run
-from tests.helpers import REPO, add_standing_car
+from tests.helpers import REPO, KeptByTheLeader
 
 STRAIGHT_NET = REPO / "networks" / "straight" / "straight.net.xml"
 PLUGINS = REPO / "tests" / "plugins"
@@ -30,25 +29,14 @@ def plugins_on_path(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(PLUGINS))
 
 
-class Alongside(StepHook):
+class Alongside(KeptByTheLeader):
     """A SUMO car kept beside the leader's front bumper on the left lane (y -1.75)."""
 
     def __init__(self) -> None:
-        self.state = "waiting"
+        super().__init__(NEIGHBOUR, "WE", 1, "p.0", ALONGSIDE_UNTIL_S)
 
-    def on_step(self, record: StepRecord) -> None:
-        leader = next((v for v in record.vehicles if v.id == "p.0"), None)
-        if leader is None or self.state == "gone":
-            return
-        if self.state == "waiting":
-            add_standing_car(NEIGHBOUR, ["WE"], 1.8, "1", "0")
-            self.state = "alongside"
-        if record.time_s >= ALONGSIDE_UNTIL_S:
-            libsumo.vehicle.remove(NEIGHBOUR)
-            self.state = "gone"
-            return
-        libsumo.vehicle.moveToXY(NEIGHBOUR, "WE", 1, leader.front_x_m, -1.75, 90.0, keepRoute=1)
-        libsumo.vehicle.setPreviousSpeed(NEIGHBOUR, leader.speed_mps)
+    def where(self, leader: VehicleRecord) -> tuple[float, float]:
+        return leader.front_x_m, -1.75
 
 
 def run_weave(write_scenario, tmp_path) -> tuple[dict, pd.DataFrame, Alongside]:
