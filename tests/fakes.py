@@ -43,6 +43,8 @@ class FakeBackend:
         self.removed: list[tuple[str, bool]] = []
         self.lateral_speeds: dict[str, float] = {}
         self.held_lateral: list[str] = []
+        self.waiting_behind: dict[str, tuple[str, float]] = {}
+        """`sideways_waits`: who a test says waits behind a car changing lanes."""
         self.vanished: list[str] = []
         """Vehicles someone else took out of SUMO since the last step."""
         self.speed_commands: dict[str, float] = {}
@@ -206,6 +208,11 @@ class FakeBackend:
 
     def hold_lateral(self, vehicle_ids: Sequence[str]) -> None:
         self.held_lateral.extend(vehicle_ids)
+
+    def sideways_waits(
+        self, vehicle_ids: Sequence[str], leaders: Sequence[VehicleAhead | None]
+    ) -> dict[str, tuple[str, float]]:
+        return {v: w for v, w in self.waiting_behind.items() if v in vehicle_ids}
 
     def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:
         return [(f, self.vehicles[f].standing_s) for f in self.yields.get(vehicle_id, [])]

@@ -57,7 +57,9 @@ class ObstaclesAhead:
     along the corridor (0 when oncoming), unless it is crossing and will have left
     (`crosses_before_arrival`). SUMO's leader on the route lanes is not repeated here
     unless SUMO drives the member and the leader's body reaches into the corridor
-    nearer than SUMO's gap says. A car moving inside a junction is also where it will
+    nearer than SUMO's gap says. A car SUMO is to move across the member's lane
+    (`Backend.sideways_waits`) is an obstacle the member's SUMO minGap nearer than its
+    back (along the lanes), standing. A car moving inside a junction is also where it will
     be in `AHEAD_S` (`moving_footprints`): on DRT a car turning left across the other
     direction stopped with its corner in a follower's path, which saw it 3.7 m ahead at
     11 m/s (seed 42, 341.0 s); another started across and stopped 5 m ahead of one at
@@ -92,13 +94,31 @@ class ObstaclesAhead:
         return row
 
     def __call__(self, ctx: StepContext) -> None:
-        world, rects = ctx.world, ctx.footprints
+        world = ctx.world
         for m in ctx.fleet:
             m.obstacle_ahead = None
             m.sidestep_m = 0.0
         members = [m for m in ctx.fleet if m.id in world.index]
         if not members or len(world.ids) < 2:
             return
+        self._intrusions(ctx, members)
+        ids, leaders = [m.id for m in members], [m.vehicle_ahead for m in members]
+        for k, leader in enumerate(leaders):  # only one inside a junction may be a misfit
+            at = world.index.get(leader.vehicle_id, -1) if leader is not None else -1
+            if at < 0 or not world.lane_ids[at].startswith(":"):
+                leaders[k] = None
+        waits = ctx.backend.sideways_waits(ids, leaders)
+        for m in members if waits else ():
+            wait = waits.get(m.id)
+            if wait is None:
+                continue
+            # SUMO's minGap is the room it asks for behind a car changing lanes at rest
+            gap = max(wait[1] - m.platoon.config.vehicle.min_gap_m, 0.0)
+            if m.obstacle_ahead is None or gap < m.obstacle_ahead.gap_m:
+                m.obstacle_ahead = VehicleAhead(wait[0], gap, 0.0)
+
+    def _intrusions(self, ctx: StepContext, members: list[Member]) -> None:
+        world, rects = ctx.world, ctx.footprints
         table = np.empty((len(members), len(MEMBER_COLUMNS)))
         rows = ctx.fleet.rows(members)
         table[:, 1] = ctx.fleet.kin[rows, ROUTE_S]

@@ -96,6 +96,15 @@ class Backend(ActuationPort, Protocol):
         keeps its distance to vehicles inside), or yield again."""
         ...
 
+    def sideways_waits(
+        self, vehicle_ids: Sequence[str], leaders: Sequence[VehicleAhead | None]
+    ) -> dict[str, tuple[str, float]]:
+        """Which of these vehicles (with SUMO's leader of each) must stay behind a car
+        SUMO is to move sideways across its path (a lane change it waits to make, a car
+        inside a junction beside the lane it goes on to), with that car's id and the gap
+        to its back along the lanes [m]."""
+        ...
+
     def remove(self, vehicle_id: str, arrived: bool) -> None:
         """Take a platoon vehicle out: as an arrival (tripinfo), or vaporised."""
         ...

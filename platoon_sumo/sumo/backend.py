@@ -71,6 +71,10 @@ HANDED_OVER_LATERAL_MPS = 1.0
 #: A car whose lane change SUMO made is steered by us again within this distance of
 #: its new lane's centre [m].
 HANDED_BACK_WITHIN_M = 0.3
+#: A car inside a junction this much [m] farther from its lane's centre than its body
+#: fits the lanes after it has to be moved sideways before it may leave
+#: (`SumoBackend.sideways_waits`).
+MISFIT_TOLERANCE_M = 0.1
 #: Sublane actuation: a lane change that SUMO, keeping the lane position, puts down
 #: farther than this from where the car drives to [m] is a jump
 #: (`SumoBackend.lane_change_landings`).
@@ -633,8 +637,7 @@ class SumoBackend:
             lane_id, front = known if known is not None else (veh.getLaneID(vid), None)
             if not lane_id:
                 continue
-            geom = self._geometry.get(vid)
-            width = geom[1] if geom is not None else float(veh.getWidth(vid))
+            width = self._size(vid)[1]
             offset[i] = veh.getLateralLanePosition(vid)
             room[i] = max(0.5 * (self._fit_width(lane_id) - width), 0.0)
             if front is None:
@@ -687,7 +690,10 @@ class SumoBackend:
             self._slow_since.pop(vid, None)
             slow_s = -1.0
         if not lane_id or lane_id.startswith(":"):
-            needs = handed  # inside a junction: no lane change, nothing to decide
+            # inside a junction no lane change is made: our steering fits the body into
+            # the lane ahead (`fit_at_lane_end`), which SUMO does not do for its own
+            # move (a car it drove in 2.3 m beside the centre stood at the exit for good)
+            needs = False
         else:
             edge = self._lane_edge(lane_id)
             if self._kept_on.get(vid, edge) != edge:
@@ -780,7 +786,7 @@ class SumoBackend:
             lx, ly = self._lane_point([target], position, shift)
             if math.hypot(lx - x, ly - y) <= LANDING_SHIFT_M:
                 continue  # the lanes lie side by side here
-            length, width = self._geometry.get(vid) or (veh.getLength(vid), veh.getWidth(vid))
+            length, width = self._size(vid)
             # turned as now: SUMO's angle follows the lateral motion, not the lane there
             yaw = math.radians(90.0 - veh.getAngle(vid))
             half_length = 0.5 * length
@@ -797,6 +803,93 @@ class SumoBackend:
             if vid in self._handed_over:
                 veh.setMaxSpeedLat(vid, 0.0)
                 self._lateral_held.add(vid)
+
+    def sideways_waits(
+        self, vehicle_ids: Sequence[str], leaders: Sequence[VehicleAhead | None]
+    ) -> dict[str, tuple[str, float]]:
+        """Which of these vehicles (with SUMO's leader of each) must stay behind a car
+        SUMO is to move sideways across its path, with that car's id and the gap to its
+        back along the lanes [m]. SUMO moves a car sideways only with a gap behind it
+        on every sublane it enters (at a standstill, the follower's minGap, along the
+        lanes), and our cars, driven by our speed commands, do not make that room as
+        SUMO's drivers do. Two such cars, standing or creeping (slower than
+        `HAND_OVER_BELOW_MPS`):
+        - one handed to SUMO's lane change (`_hand_over`) on a lane its route leaves:
+          its path is the band from its body to the centre of the lane it needs. On the
+          race circuit (seed 43) a leader stood at the end of a ramp lane waiting to
+          move left; its follower pulled up 0.5 m behind and 3 m to its left and waited
+          in turn. Along the lanes, not in the plane: on that curve the gap SUMO checks
+          was 1.9 m, the bodies 6 m apart. A vehicle level with the car's back or
+          beyond, or beside its band, is not held;
+        - SUMO's leader of a vehicle, on a junction's internal lane, with its body
+          beyond the lane it goes on to (wider lanes before a junction than after it):
+          SUMO lets a car leave a junction only with its body inside the next lane and
+          moves it there at the exit (race circuit, seed 44: a car stood 3.1 m beside
+          its lane's centre at a junction's exit, blocked by a platoon car 0.5 m behind
+          it, which waited for it). Not one level with the car or beyond (a negative
+          gap): it drives on, out of the car's way."""
+        veh = self._api.vehicle
+        bands: dict[str, list[tuple[float, float, float, str]]] = {}
+        for vid in sorted(self._handed_over):
+            lane_id = veh.getLaneID(vid)
+            if not lane_id or lane_id[0] == ":" or veh.getSpeed(vid) >= HAND_OVER_BELOW_MPS:
+                continue
+            best = veh.getBestLanes(vid)
+            offset = next((o for lane, _, _, o, _, _ in best if lane == lane_id), 0)
+            if not offset:
+                continue
+            edge, index = lane_id.rsplit("_", 1)
+            centre = self._edge_lateral(edge, int(index)) + veh.getLateralLanePosition(vid)
+            target = self._edge_lateral(edge, int(index) + offset)
+            length, width = self._size(vid)
+            low, high = min(centre - 0.5 * width, target), max(centre + 0.5 * width, target)
+            back = veh.getLanePosition(vid) - length
+            bands.setdefault(edge, []).append((back, low, high, vid))
+        waits: dict[str, tuple[str, float]] = {}
+        for vid, leader in zip(vehicle_ids, leaders, strict=True):
+            if leader is not None and leader.gap_m >= 0.0 and self._misfit(leader.vehicle_id):
+                waits[vid] = (leader.vehicle_id, leader.gap_m)
+        if not bands:
+            return waits
+        for vid in vehicle_ids:
+            lane_id = veh.getLaneID(vid)
+            edge, _, index = lane_id.rpartition("_")
+            if edge not in bands:
+                continue
+            front = veh.getLanePosition(vid)
+            centre = self._edge_lateral(edge, int(index)) + veh.getLateralLanePosition(vid)
+            half = 0.5 * self._size(vid)[1]
+            for back, low, high, other in bands[edge]:
+                gap = back - front
+                if other == vid or gap < 0.0 or centre + half <= low or centre - half >= high:
+                    continue
+                if vid not in waits or gap < waits[vid][1]:
+                    waits[vid] = (other, gap)
+        return waits
+
+    def _misfit(self, vid: str) -> bool:
+        """Is this car standing or creeping on a junction's internal lane with its body
+        beyond the lanes it goes on to (more than `MISFIT_TOLERANCE_M`)?"""
+        veh = self._api.vehicle
+        lane_id = veh.getLaneID(vid)
+        if not lane_id.startswith(":") or veh.getSpeed(vid) >= HAND_OVER_BELOW_MPS:
+            return False
+        room = 0.5 * (self._fit_width(lane_id) - self._size(vid)[1])
+        return abs(veh.getLateralLanePosition(vid)) > max(room, 0.0) + MISFIT_TOLERANCE_M
+
+    def _size(self, vid: str) -> tuple[float, float]:
+        """A vehicle's (length, width) [m], read once."""
+        size = self._geometry.get(vid)
+        if size is None:
+            veh = self._api.vehicle
+            size = self._geometry[vid] = (float(veh.getLength(vid)), float(veh.getWidth(vid)))
+        return size
+
+    def _edge_lateral(self, edge: str, index: int) -> float:
+        """Where the centre of an edge's lane lies across the edge, from its right
+        side [m]."""
+        widths = [self.lane_width(f"{edge}_{k}") for k in range(index + 1)]
+        return sum(widths) - 0.5 * widths[-1]
 
     def _lane_count(self, edge: str) -> int:
         count = self._lane_counts.get(edge)
@@ -845,8 +938,7 @@ class SumoBackend:
                 else:
                     lanes.insert(0, lane_id)
                     del lanes[4:]
-            geom = self._geometry.get(vid)
-            length = geom[0] if geom is not None else veh.getLength(vid)
+            length = self._size(vid)[0]
             front = veh.getLanePosition(vid)
             self._fronts[vid] = (lane_id, front)
             now[i] = self._chord(lanes, front, length)
@@ -863,10 +955,9 @@ class SumoBackend:
             lanes = self._lanes_behind.get(vid)
             if not lanes:
                 continue
-            geom = self._geometry.get(vid)
             known = self._fronts.get(vid)
             front = known[1] if known is not None else veh.getLanePosition(vid)
-            back = front - (geom[0] if geom is not None else veh.getLength(vid))
+            back = front - self._size(vid)[0]
             k = 0
             hit = lanes[0].startswith(":")
             while not hit and back < 0.0 and k + 1 < len(lanes):
@@ -1039,7 +1130,12 @@ class SumoBackend:
         return length
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
-        """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view)."""
+        """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view).
+        None for one whose back is not ahead of the front bumper: SUMO's leader in the
+        sublane model may be a car beside on a wide lane (the footprint check,
+        `loop.obstacles`, sees any body in the way). Followed as a leader, it held a
+        platoon car in a junction beside a car that had overtaken it on the right, in
+        the way of that car's move back into the lane after (race circuit, seed 44)."""
         veh = self._api.vehicle
         found = veh.getLeader(vehicle_id, horizon_m)
         if not found or not found[0]:
@@ -1048,8 +1144,10 @@ class SumoBackend:
         min_gap = self._min_gaps.get(vehicle_id)
         if min_gap is None:  # fixed by its type: read once
             min_gap = self._min_gaps[vehicle_id] = float(veh.getMinGap(vehicle_id))
-        # getLeader's distance excludes the asking vehicle's minGap: add it back.
-        return VehicleAhead(other, float(found[1]) + min_gap, float(veh.getSpeed(other)))
+        gap = float(found[1]) + min_gap  # getLeader's distance excludes the minGap
+        if gap < 0.0:
+            return None
+        return VehicleAhead(other, gap, float(veh.getSpeed(other)))
 
     def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
         """Collisions SUMO itself detected this step: (collider, victim, type)."""
