@@ -473,6 +473,39 @@ def test_sumos_leader_is_an_obstacle_when_its_body_reaches_nearer_than_its_gap(
     assert found[1] is None and found[2] is None  # SUMO's gap is the body's (a slice on)
 
 
+def test_a_car_sumo_is_to_move_across_the_path_is_an_obstacle_a_min_gap_early(
+    write_scenario,
+):
+    """A car that SUMO moves sideways only with room behind it (a lane change it waits
+    to make, a car in a junction beside its next lane) holds a member that would pull up
+    into that room: an obstacle the member's SUMO minGap before its back, standing; a
+    nearer obstacle in the corridor stays the one reported."""
+    backend = FakeBackend()
+    ctx = context(plan(write_scenario, members=1), backend)
+    departed(ctx, backend)
+    min_gap = ctx.fleet.get("p.0").platoon.config.vehicle.min_gap_m
+    backend.vehicles["h"] = FakeVehicle(110.0, LANE_Y_M + 3.2, speed_mps=0.0)  # beside
+    found = []
+    for waits in ({}, {"p.0": ("h", 10.0)}, {"p.0": ("h", 1.0)}):
+        backend.waiting_behind = waits
+        ObserveWorld()(ctx)
+        ReadBack()(ctx)
+        Footprints()(ctx)
+        ObstaclesAhead()(ctx)
+        found.append(ctx.fleet.get("p.0").obstacle_ahead)
+    assert found[0] is None  # the car beside is not in the corridor
+    assert found[1] == VehicleAhead("h", 10.0 - min_gap, 0.0)
+    assert found[2] == VehicleAhead("h", 0.0, 0.0)  # already within the room: stop
+    backend.vehicles["k"] = FakeVehicle(107.0, LANE_Y_M, speed_mps=0.0)  # in the path
+    backend.waiting_behind = {"p.0": ("h", 30.0)}
+    ObserveWorld()(ctx)
+    ReadBack()(ctx)
+    Footprints()(ctx)
+    ObstaclesAhead()(ctx)
+    nearer = ctx.fleet.get("p.0").obstacle_ahead
+    assert nearer is not None and nearer.vehicle_id == "k"
+
+
 def test_a_car_held_in_a_circle_of_right_of_way_takes_the_junction(write_scenario):
     """SUMO holds p.0 at a minor link, yielding to h; h stands too (it yields to
     someone else). After `STANDOFF_S`, once h has stood for `FOES_STILL_S`, p.0 takes
