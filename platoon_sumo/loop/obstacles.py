@@ -59,11 +59,15 @@ class ObstaclesAhead:
     unless SUMO drives the member and the leader's body reaches into the corridor
     nearer than SUMO's gap says. A car SUMO is to move across the member's lane
     (`Backend.sideways_waits`) is an obstacle the member's SUMO minGap nearer than its
-    back (along the lanes), standing. A car moving inside a junction is also where it will
-    be in `AHEAD_S` (`moving_footprints`): on DRT a car turning left across the other
-    direction stopped with its corner in a follower's path, which saw it 3.7 m ahead at
-    11 m/s (seed 42, 341.0 s); another started across and stopped 5 m ahead of one at
-    9 m/s (seed 43, 264.7 s).
+    back (along the lanes), standing, for a member that can stop there comfortably
+    when it first sees it (and then until it has moved over); one that cannot, or is
+    within that room already, drives on and the car moves over behind it
+    (fokr_bs_demo, seed 42: a follower held 1.9 m behind a member standing on the next
+    lane to move in front of it, which SUMO held for want of that room). A car moving
+    inside a junction is also where it will be in `AHEAD_S` (`moving_footprints`): on
+    DRT a car turning left across the other direction stopped with its corner in a
+    follower's path, which saw it 3.7 m ahead at 11 m/s (seed 42, 341.0 s); another
+    started across and stopped 5 m ahead of one at 9 m/s (seed 43, 264.7 s).
     One compiled pass over all members; the route paths are stacked once (a new route
     adds its path)."""
 
@@ -73,6 +77,8 @@ class ObstaclesAhead:
         self._paths: list[RoutePath] = []
         self._stacked: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None
         self._lanes: JunctionLanes | None = None
+        self._holding: dict[str, str] = {}
+        """Members held behind a car SUMO is to move sideways, and that car."""
 
     def _constants(self, m: Member) -> tuple[float, float, float, float, float, float]:
         """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width,
@@ -108,14 +114,23 @@ class ObstaclesAhead:
             if at < 0 or not world.lane_ids[at].startswith(":"):
                 leaders[k] = None
         waits = ctx.backend.sideways_waits(ids, leaders)
-        for m in members if waits else ():
+        speeds = ctx.fleet.kin[ctx.fleet.rows(members), SPEED].tolist()
+        held, self._holding = self._holding, {}
+        for m, speed in zip(members, speeds, strict=True) if waits else ():
             wait = waits.get(m.id)
             if wait is None:
                 continue
-            # SUMO's minGap is the room it asks for behind a car changing lanes at rest
-            gap = max(wait[1] - m.platoon.config.vehicle.min_gap_m, 0.0)
-            if m.obstacle_ahead is None or gap < m.obstacle_ahead.gap_m:
-                m.obstacle_ahead = VehicleAhead(wait[0], gap, 0.0)
+            other, gap = wait
+            # SUMO's minGap is the room it asks for behind a car moving over at rest;
+            # a member that cannot stop short of it comfortably when it first sees the
+            # car drives on, as one already within it: the car moves over behind it
+            room = gap - m.platoon.config.vehicle.min_gap_m
+            stop = max(speed, 0.0) ** 2 / (2.0 * m.platoon.config.supervisor.comfort_decel_mps2)
+            if room < 0.0 or (held.get(m.id) != other and room < stop):
+                continue
+            self._holding[m.id] = other
+            if m.obstacle_ahead is None or room < m.obstacle_ahead.gap_m:
+                m.obstacle_ahead = VehicleAhead(other, room, 0.0)
 
     def _intrusions(self, ctx: StepContext, members: list[Member]) -> None:
         world, rects = ctx.world, ctx.footprints

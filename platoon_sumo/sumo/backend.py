@@ -71,6 +71,8 @@ HANDED_OVER_LATERAL_MPS = 1.0
 #: A car whose lane change SUMO made is steered by us again within this distance of
 #: its new lane's centre [m].
 HANDED_BACK_WITHIN_M = 0.3
+#: SUMO's lane-change state bits: the car wants to change left, right (`getLaneChangeState`).
+LCA_LEFT, LCA_RIGHT = 2, 4
 #: A car inside a junction this much [m] farther from its lane's centre than its body
 #: fits the lanes after it has to be moved sideways before it may leave
 #: (`SumoBackend.sideways_waits`).
@@ -814,7 +816,10 @@ class SumoBackend:
         lanes), and our cars, driven by our speed commands, do not make that room as
         SUMO's drivers do. Two such cars, standing or creeping (slower than
         `HAND_OVER_BELOW_MPS`):
-        - one handed to SUMO's lane change (`_hand_over`) on a lane its route leaves:
+        - one handed to SUMO's lane change (`_hand_over`) on a lane its route leaves,
+          which SUMO wants to change now (a change needed on a later edge is not
+          claimed: on `highway`, seed 44, a leader held back by our own gap check
+          claimed the lane of the follower beside it, which stopped for it):
           its path is the band from its body to the centre of the lane it needs. On the
           race circuit (seed 43) a leader stood at the end of a ramp lane waiting to
           move left; its follower pulled up 0.5 m behind and 3 m to its left and waited
@@ -838,6 +843,9 @@ class SumoBackend:
             offset = next((o for lane, _, _, o, _, _ in best if lane == lane_id), 0)
             if not offset:
                 continue
+            wish = veh.getLaneChangeState(vid, 1 if offset > 0 else -1)[0]
+            if not wish & (LCA_LEFT if offset > 0 else LCA_RIGHT):
+                continue  # SUMO does not want the change yet (a later edge needs it)
             edge, index = lane_id.rsplit("_", 1)
             centre = self._edge_lateral(edge, int(index)) + veh.getLateralLanePosition(vid)
             target = self._edge_lateral(edge, int(index) + offset)

@@ -477,32 +477,39 @@ def test_a_car_sumo_is_to_move_across_the_path_is_an_obstacle_a_min_gap_early(
     write_scenario,
 ):
     """A car that SUMO moves sideways only with room behind it (a lane change it waits
-    to make, a car in a junction beside its next lane) holds a member that would pull up
-    into that room: an obstacle the member's SUMO minGap before its back, standing; a
-    nearer obstacle in the corridor stays the one reported."""
+    to make, a car in a junction beside its next lane) holds a member that can stop
+    short of that room comfortably when it first sees it, and then until it has moved
+    over: an obstacle the member's SUMO minGap before its back, standing. A member
+    within that room already, or too fast to stop short of it, drives on (the car then
+    moves over behind it); a nearer obstacle in the corridor stays the one reported."""
     backend = FakeBackend()
     ctx = context(plan(write_scenario, members=1), backend)
     departed(ctx, backend)
-    min_gap = ctx.fleet.get("p.0").platoon.config.vehicle.min_gap_m
+    config = ctx.fleet.get("p.0").platoon.config
+    min_gap, comfort = config.vehicle.min_gap_m, config.supervisor.comfort_decel_mps2
     backend.vehicles["h"] = FakeVehicle(110.0, LANE_Y_M + 3.2, speed_mps=0.0)  # beside
-    found = []
-    for waits in ({}, {"p.0": ("h", 10.0)}, {"p.0": ("h", 1.0)}):
+    stage = ObstaclesAhead()
+
+    def ahead(waits: dict[str, tuple[str, float]], speed_mps: float) -> VehicleAhead | None:
         backend.waiting_behind = waits
+        backend.vehicles["p.0"].speed_mps = speed_mps
         ObserveWorld()(ctx)
         ReadBack()(ctx)
         Footprints()(ctx)
-        ObstaclesAhead()(ctx)
-        found.append(ctx.fleet.get("p.0").obstacle_ahead)
-    assert found[0] is None  # the car beside is not in the corridor
-    assert found[1] == VehicleAhead("h", 10.0 - min_gap, 0.0)
-    assert found[2] == VehicleAhead("h", 0.0, 0.0)  # already within the room: stop
+        stage(ctx)
+        return ctx.fleet.get("p.0").obstacle_ahead
+
+    fast = 10.0
+    far = min_gap + fast**2 / (2.0 * comfort) - 1.0  # a metre short of a comfortable stop
+    assert ahead({}, 0.0) is None  # the car beside is not in the corridor
+    assert ahead({"p.0": ("h", 10.0)}, 0.0) == VehicleAhead("h", 10.0 - min_gap, 0.0)
+    assert ahead({"p.0": ("h", 1.0)}, 0.0) is None  # within the room already: drives on
+    assert ahead({"p.0": ("h", far)}, fast) is None  # first seen too late to stop
+    assert ahead({"p.0": ("h", 30.0)}, 0.0) is not None
+    held = ahead({"p.0": ("h", far)}, fast)  # held since it was first seen: kept
+    assert held == VehicleAhead("h", far - min_gap, 0.0)
     backend.vehicles["k"] = FakeVehicle(107.0, LANE_Y_M, speed_mps=0.0)  # in the path
-    backend.waiting_behind = {"p.0": ("h", 30.0)}
-    ObserveWorld()(ctx)
-    ReadBack()(ctx)
-    Footprints()(ctx)
-    ObstaclesAhead()(ctx)
-    nearer = ctx.fleet.get("p.0").obstacle_ahead
+    nearer = ahead({"p.0": ("h", 30.0)}, 0.0)
     assert nearer is not None and nearer.vehicle_id == "k"
 
 
