@@ -814,25 +814,24 @@ class SumoBackend:
         back along the lanes [m]. SUMO moves a car sideways only with a gap behind it
         on every sublane it enters (at a standstill, the follower's minGap, along the
         lanes), and our cars, driven by our speed commands, do not make that room as
-        SUMO's drivers do. Two such cars, standing or creeping (slower than
-        `HAND_OVER_BELOW_MPS`):
-        - one handed to SUMO's lane change (`_hand_over`) on a lane its route leaves,
-          which SUMO wants to change now (a change needed on a later edge is not
-          claimed: on `highway`, seed 44, a leader held back by our own gap check
-          claimed the lane of the follower beside it, which stopped for it):
-          its path is the band from its body to the centre of the lane it needs. On the
-          race circuit (seed 43) a leader stood at the end of a ramp lane waiting to
-          move left; its follower pulled up 0.5 m behind and 3 m to its left and waited
-          in turn. Along the lanes, not in the plane: on that curve the gap SUMO checks
-          was 1.9 m, the bodies 6 m apart. A vehicle level with the car's back or
-          beyond, or beside its band, is not held;
-        - SUMO's leader of a vehicle, on a junction's internal lane, with its body
-          beyond the lane it goes on to (wider lanes before a junction than after it):
-          SUMO lets a car leave a junction only with its body inside the next lane and
-          moves it there at the exit (race circuit, seed 44: a car stood 3.1 m beside
-          its lane's centre at a junction's exit, blocked by a platoon car 0.5 m behind
-          it, which waited for it). Not one level with the car or beyond (a negative
-          gap): it drives on, out of the car's way."""
+        SUMO's drivers do. Two such cars:
+        - one handed to SUMO's lane change (`_hand_over`), standing or creeping
+          (slower than `HAND_OVER_BELOW_MPS`) on a lane its route leaves, with SUMO
+          wanting the change now (not one a later edge needs: on `highway`, seed 44, a
+          leader held back by our own gap check claimed the lane of the follower
+          beside it, which stopped for it). Its path is the band from its body to the
+          centre of the lane it needs; a vehicle level with its back or beyond, or
+          beside the band, is not held. Race circuit, seed 43: a leader stood at the
+          end of a ramp lane waiting to move left; its follower pulled up 0.5 m behind
+          and 3 m to its left and waited in turn. Along the lanes, not in the plane:
+          on that curve the gap SUMO checks was 1.9 m, the bodies 6 m apart;
+        - SUMO's leader of a vehicle, moving or not, on a junction's internal lane with
+          its body beyond the lane it goes on to (wider lanes before the junction than
+          after it): SUMO lets a car leave a junction only with its body inside the
+          next lane and moves it there at the exit. Race circuit, seed 44: a car stood
+          3.1 m beside its lane's centre at a junction's exit, blocked by a platoon car
+          0.5 m behind it, which waited for it. Not with a negative gap (level or
+          beyond): that vehicle drives on, out of the car's way."""
         veh = self._api.vehicle
         bands: dict[str, list[tuple[float, float, float, str]]] = {}
         for vid in sorted(self._handed_over):
@@ -876,11 +875,13 @@ class SumoBackend:
         return waits
 
     def _misfit(self, vid: str) -> bool:
-        """Is this car standing or creeping on a junction's internal lane with its body
-        beyond the lanes it goes on to (more than `MISFIT_TOLERANCE_M`)?"""
+        """Is this car on a junction's internal lane with its body beyond the lanes it
+        goes on to (more than `MISFIT_TOLERANCE_M`)? Moving or not: it will stop at the
+        exit to move over (race circuit, seed 44: a car behind one that stopped there
+        was already within the room when the other stood still)."""
         veh = self._api.vehicle
         lane_id = veh.getLaneID(vid)
-        if not lane_id.startswith(":") or veh.getSpeed(vid) >= HAND_OVER_BELOW_MPS:
+        if not lane_id.startswith(":"):
             return False
         room = 0.5 * (self._fit_width(lane_id) - self._size(vid)[1])
         return abs(veh.getLateralLanePosition(vid)) > max(room, 0.0) + MISFIT_TOLERANCE_M

@@ -86,12 +86,14 @@ def test_a_car_inside_a_junction_beside_its_next_lane_holds_the_car_behind(backe
         backend.step()
         if libsumo.vehicle.getLaneID("misfit").startswith(":"):
             break
+    behind = VehicleAhead("misfit", 3.0, 0.0)
+    assert libsumo.vehicle.getSpeed("misfit") > 1.0  # moving: it will stop at the exit
+    assert backend.sideways_waits(["follower"], [behind]) == {"follower": ("misfit", 3.0)}
     libsumo.vehicle.setSpeed("misfit", 0.0)
     for _ in range(10):
         backend.step()
     lane = libsumo.vehicle.getLaneID("misfit")
     assert lane.startswith(":") and libsumo.vehicle.getLateralLanePosition("misfit") < -1.0
-    behind = VehicleAhead("misfit", 3.0, 0.0)
     assert backend.sideways_waits(["follower"], [behind]) == {"follower": ("misfit", 3.0)}
     level = VehicleAhead("misfit", -0.5, 0.0)  # level with its back: drives on, not held
     assert backend.sideways_waits(["follower"], [level]) == {}
