@@ -114,9 +114,11 @@ class ObstaclesAhead:
             if at < 0 or not world.lane_ids[at].startswith(":"):
                 leaders[k] = None
         waits = ctx.backend.sideways_waits(ids, leaders)
-        speeds = ctx.fleet.kin[ctx.fleet.rows(members), SPEED].tolist()
         held, self._holding = self._holding, {}
-        for m, speed in zip(members, speeds, strict=True) if waits else ():
+        if not waits:
+            return
+        speeds = ctx.fleet.kin[ctx.fleet.rows(members), SPEED].tolist()
+        for m, speed in zip(members, speeds, strict=True):
             wait = waits.get(m.id)
             if wait is None:
                 continue
@@ -125,7 +127,7 @@ class ObstaclesAhead:
             # a member that cannot stop short of it comfortably when it first sees the
             # car drives on, as one already within it: the car moves over behind it
             room = gap - m.platoon.config.vehicle.min_gap_m
-            stop = max(speed, 0.0) ** 2 / (2.0 * m.platoon.config.supervisor.comfort_decel_mps2)
+            stop = max(speed, 0.0) ** 2 * self._constants(m)[1]  # the corridor's stop
             if room < 0.0 or (held.get(m.id) != other and room < stop):
                 continue
             self._holding[m.id] = other

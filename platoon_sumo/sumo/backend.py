@@ -845,9 +845,8 @@ class SumoBackend:
             wish = veh.getLaneChangeState(vid, 1 if offset > 0 else -1)[0]
             if not wish & (LCA_LEFT if offset > 0 else LCA_RIGHT):
                 continue  # SUMO does not want the change yet (a later edge needs it)
-            edge, index = lane_id.rsplit("_", 1)
-            centre = self._edge_lateral(edge, int(index)) + veh.getLateralLanePosition(vid)
-            target = self._edge_lateral(edge, int(index) + offset)
+            edge, index, centre = self._across_edge(vid, lane_id)
+            target = self._edge_lateral(edge, index + offset)
             length, width = self._size(vid)
             low, high = min(centre - 0.5 * width, target), max(centre + 0.5 * width, target)
             back = veh.getLanePosition(vid) - length
@@ -860,11 +859,10 @@ class SumoBackend:
             return waits
         for vid in vehicle_ids:
             lane_id = veh.getLaneID(vid)
-            edge, _, index = lane_id.rpartition("_")
-            if edge not in bands:
+            if lane_id.rpartition("_")[0] not in bands:
                 continue
+            edge, _, centre = self._across_edge(vid, lane_id)
             front = veh.getLanePosition(vid)
-            centre = self._edge_lateral(edge, int(index)) + veh.getLateralLanePosition(vid)
             half = 0.5 * self._size(vid)[1]
             for back, low, high, other in bands[edge]:
                 gap = back - front
@@ -893,6 +891,14 @@ class SumoBackend:
             veh = self._api.vehicle
             size = self._geometry[vid] = (float(veh.getLength(vid)), float(veh.getWidth(vid)))
         return size
+
+    def _across_edge(self, vid: str, lane_id: str) -> tuple[str, int, float]:
+        """The edge of a vehicle's lane (SUMO's lane id: edge, "_", index), the lane's
+        index, and where the vehicle's centre lies across the edge, from its right
+        side [m]."""
+        edge, _, index = lane_id.rpartition("_")
+        lateral = self._api.vehicle.getLateralLanePosition(vid)
+        return edge, int(index), self._edge_lateral(edge, int(index)) + lateral
 
     def _edge_lateral(self, edge: str, index: int) -> float:
         """Where the centre of an edge's lane lies across the edge, from its right
