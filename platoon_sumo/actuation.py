@@ -112,11 +112,12 @@ class ActuationBatch:
 @dataclass(frozen=True)
 class Surroundings:
     """Every vehicle in the network after the last step: (N, 5) rectangles (centre,
-    yaw, length, width; `platoon_sumo.geometry`) and speeds, and the batch's rows in
-    them (-1: not in the network)."""
+    yaw, length, width; `platoon_sumo.geometry`), speeds and yaw rates over the last
+    step, and the batch's rows in them (-1: not in the network)."""
 
     footprints: FloatArray
     speed_mps: FloatArray
+    yaw_rate_radps: FloatArray
     rows: IntArray
 
 
@@ -252,9 +253,10 @@ class SublaneActuation:
 
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
-        `SIDEWAYS_HORIZON_S` (every car driving on along its yaw) is not made (the
-        lateral speed is 0; SUMO's drivers let our commands through as they come and do
-        not check them); nor is SUMO's own move of a car handed over to its lane change
+        `SIDEWAYS_HORIZON_S` (every car driving on at its speed and the yaw rate it
+        showed over the last step: on a curve along it) is not made (the lateral speed
+        is 0; SUMO's drivers let our commands through as they come and do not check
+        them); nor is SUMO's own move of a car handed over to its lane change
         (`sumo.hold_lateral`). Neither is a lane change that SUMO would put down onto
         another car, away from where the car drives (`_jumps_into_others`)."""
         sumo.set_speeds(batch.vehicle_ids, batch.speed_cmd_mps)
@@ -285,7 +287,7 @@ class SublaneActuation:
             sumos = ~np.isnan(theirs)
             moving = np.where(sumos, theirs, lateral)
             blocked = sideways_conflicts(
-                around.footprints, around.speed_mps, around.rows,
+                around.footprints, around.speed_mps, around.yaw_rate_radps, around.rows,
                 moving * SIDEWAYS_HORIZON_S, SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M,
                 batch.dt_s,
             )  # fmt: skip
@@ -322,8 +324,8 @@ def _jumps_into_others(
     jumping = np.flatnonzero(~np.isnan(landings[:, 0]))
     if len(jumping):
         out[jumping] = landing_conflicts(
-            around.footprints, around.speed_mps, around.rows[jumping], landings[jumping],
-            reached[jumping], PLACED_REACTION_S, SIDEWAYS_CLEARANCE_M, dt,
+            around.footprints, around.speed_mps, around.yaw_rate_radps, around.rows[jumping],
+            landings[jumping], reached[jumping], PLACED_REACTION_S, SIDEWAYS_CLEARANCE_M, dt,
         )  # fmt: skip
     return out
 

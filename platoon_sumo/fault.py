@@ -114,6 +114,8 @@ def contact_fault(
     turn_b_rad: float = 0.0,
     placed_recently_a: bool = False,
     placed_recently_b: bool = False,
+    across_a_mps: float | None = None,
+    across_b_mps: float | None = None,
 ) -> Fault:
     """Attribute the contact of two overlapping rectangles ``(cx, cy, yaw, length, width)``
     whose vehicles move along their yaw at the given speeds, each on a lane running in
@@ -122,7 +124,11 @@ def contact_fault(
     step the contact began in (its footprint centre's displacement / `step_s`), used
     instead of speed along yaw, ``turn_*_rad`` how far its footprint turned over that
     step, and ``placed_recently_*`` whether SUMO placed it (``was_placed``) within the
-    other's reach at most `PLACED_REACTION_S` before."""
+    other's reach at most `PLACED_REACTION_S` before. ``across_*_mps``, when given, is
+    how fast the vehicle's front moved across its lane over that step (to the left +,
+    from its distance to the lane's centre line), used for its sideways motion instead
+    of its velocity against the lane's direction: where a lane bends, a body keeping its
+    place across the lane moves its centre across the direction of the lane there."""
     rects = np.vstack([np.asarray(rect_a, dtype=np.float64), np.asarray(rect_b, dtype=np.float64)])
     corners = rectangle_corners(rects)
     overlap = Polygon(corners[0]).intersection(Polygon(corners[1]))
@@ -150,6 +156,7 @@ def contact_fault(
         for v, m, r in zip(velocity, (motion_a_mps, motion_b_mps), reported, strict=True)
     ]
     turns = (float(turn_a_rad), float(turn_b_rad))
+    across = (across_a_mps, across_b_mps)
 
     def sideways(i: int) -> float:
         """Speed of vehicle i across its lane, towards the side where the other is."""
@@ -162,7 +169,10 @@ def contact_fault(
         beside = BESIDE_SHARE * 0.5 * (rects[i, WIDTH] + rects[j, WIDTH])
         if abs(side) < beside:  # more ahead or behind than beside: not a sideways move
             return 0.0
-        return math.copysign(1.0, side) * (velocity[i][0] * nx + velocity[i][1] * ny)
+        own = across[i]
+        if own is None:
+            own = velocity[i][0] * nx + velocity[i][1] * ny
+        return math.copysign(1.0, side) * own
 
     # each vehicle's own motion over the step, the other held at its footprint of the
     # step's start: how fast it closed the gap between them (rigid: turns included)

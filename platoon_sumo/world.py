@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.geometry import wrap_angle
+
 
 @dataclass(frozen=True)
 class WorldSnapshot:
@@ -28,6 +30,19 @@ class WorldSnapshot:
 
     def __len__(self) -> int:
         return len(self.ids)
+
+
+def yaw_rates(now: WorldSnapshot, before: WorldSnapshot | None) -> NDArray[np.float64]:
+    """Each vehicle's yaw rate over the time from `before` to `now` [rad/s] (rows of
+    `now`; 0 for a vehicle `before` did not hold, or without `before`)."""
+    rates = np.zeros(len(now))
+    if before is None or now.time_s <= before.time_s or not len(before):
+        return rates
+    then = np.fromiter((before.index.get(vid, -1) for vid in now.ids), np.int64, len(now))
+    seen = then >= 0
+    turned = wrap_angle(now.yaw_rad[seen] - before.yaw_rad[then[seen]])
+    rates[seen] = turned / (now.time_s - before.time_s)
+    return rates
 
 
 #: Signal states at which a driver stops if it can: red, red-yellow, yellow.

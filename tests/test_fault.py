@@ -55,6 +55,23 @@ def test_cut_in_is_the_lane_changer_even_when_struck_from_behind():
     assert contact_fault(straight, cutter, 12.0, 12.0).at_fault == 0
 
 
+def test_a_body_keeping_its_place_across_a_bending_lane_does_not_move_sideways():
+    """Found on a race circuit (seed 44, 427.8 s): a platoon car and a SUMO car side by
+    side in a 10 m lane, both at a fixed place across it, took a bend; the platoon car's
+    centre moved 0.18 rad off the direction of the lane segment it was on, 0.5 m/s
+    towards the other, and it was blamed for a sideways move it never made. The speed
+    across the lane comes from the front's distance to the lane's centre line."""
+    inner = car(0.0, 0.0, 0.2)
+    outer = car(-0.5, -1.75, 0.0)  # beside-right, corners touching
+    motion = (2.9 * math.cos(-0.18), 2.9 * math.sin(-0.18))  # right of the lane's direction
+    args = (inner, outer, 2.9, 3.0, 0.0, 0.0, motion, (3.0, 0.0))
+    assert contact_fault(*args).reason == SIDEWAYS  # against the lane's direction
+    kept = contact_fault(*args, across_a_mps=0.0, across_b_mps=0.0)
+    assert kept.reason != SIDEWAYS
+    drifting = contact_fault(*args, across_a_mps=-0.5, across_b_mps=0.0)
+    assert (drifting.at_fault, drifting.reason) == (0, SIDEWAYS)
+
+
 def test_side_swipe_is_the_drifting_car():
     a = car(0.0, 0.0)
     b = car(0.5, 1.7, -math.radians(4.0))  # beside, drifting right into a
@@ -318,8 +335,8 @@ def test_the_sideways_rule_waits_until_the_whole_body_is_on_the_lane():
     (the rule is off in junctions). On the lane as SUMO counts it: the front at least
     a vehicle length into it."""
     net = Network(REPO / "networks" / "straight" / "straight.net.xml")  # WE_0: x 0..3000
-    assert net.lane_frame("WE_0", -1.0, -5.0) == (0.0, 0.0)  # before the start: clipped
-    assert net.lane_frame("WE_0", 1200.0, -4.0) == pytest.approx((0.0, 1200.0))
+    assert net.lane_frame("WE_0", -1.0, -5.0) == pytest.approx((0.0, 0.0, 0.25))  # clipped
+    assert net.lane_frame("WE_0", 1200.0, -6.0) == pytest.approx((0.0, 1200.0, -0.75))
 
     def body(front_x_m: float, heading_deg: float) -> np.ndarray:
         yaw = math.radians(heading_deg)  # the body behind the front bumper, any heading

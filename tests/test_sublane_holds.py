@@ -44,7 +44,9 @@ def actuate(port: Port, yaw_rate_radps: float, others: list[tuple[float, ...]]) 
         vehicle_ids=CARS, state=state, speed_cmd_mps=np.full(n, 2.0),
         yaw_rate_cmd_radps=np.array([yaw_rate_radps, 0.0]), lane_change=np.zeros(n, int),
         front_offset_m=3.5, length_m=4.5, limits=LIMITS, model=Bicycle(),
-        dt_s=0.1, surroundings=Surroundings(rects, np.full(len(rects), 2.0), np.array([0, 1])),
+        dt_s=0.1, surroundings=Surroundings(
+            rects, np.full(len(rects), 2.0), np.zeros(len(rects)), np.array([0, 1])
+        ),
     )  # fmt: skip
     SublaneActuation().apply(batch, port)
     return port

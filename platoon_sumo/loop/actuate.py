@@ -16,6 +16,7 @@ from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import ACCEL, SPEED, YAW, Member, X, Y
 from platoon_sumo.supervisor import SUMO_SAFETY
 from platoon_sumo.vehicles import KinematicState, heading_to_yaw_rate, powertrain_speed
+from platoon_sumo.world import yaw_rates
 
 #: SUMO's speed this far below what the command and the acceleration limit allowed
 #: means SUMO's safety layer acted [m/s].
@@ -84,6 +85,7 @@ class Actuate:
             else Surroundings(
                 footprints,
                 world.speed_mps,
+                yaw_rates(world, ctx.world_before),
                 np.array([world.index.get(m.id, -1) for m in group], dtype=np.int64),
             ),
             front_offset_m=vehicle.front_offset_m,

@@ -69,6 +69,8 @@ class StepContext:
     fleet: Fleet = field(default_factory=Fleet)
     world: WorldSnapshot = field(default_factory=lambda: empty_world(0.0))
     footprints: FloatArray = field(default_factory=lambda: np.empty((0, 5)))
+    world_before: WorldSnapshot | None = None
+    """The world read one SUMO step before `world` (for what changed over a step)."""
     sensed_world: WorldSnapshot | None = None
     """The world this step's sensors observed (the previous step's)."""
     sensed_footprints: FloatArray | None = None

@@ -77,7 +77,7 @@ class ObserveWorld:
             if self._own_reach_m is None:
                 self._own_reach_m = own_reach_m(ctx.run.plan)
             radius = self._own_reach_m + backend.largest_vehicle_m()
-        ctx.world = backend.snapshot(ids, radius)
+        ctx.world_before, ctx.world = ctx.world, backend.snapshot(ids, radius)
 
 
 def own_reach_m(plan: RunPlan) -> float:

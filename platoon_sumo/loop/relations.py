@@ -123,11 +123,15 @@ class SafetyCheck:
                 a, b = b, a  # the platoon vehicle first
             i, j = world.index[a], world.index[b]
             lanes = [_lane_yaw(network, world.lane_ids[k], rects[k]) for k in (i, j)]
+            across = [
+                None if lane is None else _across_mps(ctx, network, k, dt_s)
+                for lane, k in zip(lanes, (i, j), strict=True)
+            ]
             fault = contact_fault(
                 rects[i], rects[j], world.speed_mps[i], world.speed_mps[j], lanes[0], lanes[1],
                 _motion(ctx, i, dt_s), _motion(ctx, j, dt_s), dt_s or ctx.dt_s,
                 _turn_rad(ctx, i), _turn_rad(ctx, j), self._placed_near(a, b, world.time_s),
-                self._placed_near(b, a, world.time_s),
+                self._placed_near(b, a, world.time_s), across[0], across[1],
             )  # fmt: skip
             ctx.emit(
                 EventKind.COLLISION, ctx.fleet.get(a) or a, other=b, detail=fault.reason,
@@ -217,6 +221,23 @@ def _motion(ctx: StepContext, k: int, dt_s: float | None) -> tuple[float, float]
         return None
     now = ctx.footprints[k]
     return (float(now[CX] - was[CX]) / dt_s, float(now[CY] - was[CY]) / dt_s)
+
+
+def _across_mps(ctx: StepContext, network: Network, k: int, dt_s: float | None) -> float | None:
+    """How fast row `k`'s front bumper moved across its lane over the step [m/s] (left
+    +): the change of its distance to the lane's centre line, as SUMO's lateral
+    position (None when not known)."""
+    was = _before(ctx, k)
+    if was is None or dt_s is None:
+        return None
+    offsets = []
+    for rect in (was, ctx.footprints[k]):
+        x, y = centre_to_front_bumper(rect[CX], rect[CY], rect[YAW], rect[LENGTH])
+        frame = network.lane_frame(ctx.world.lane_ids[k], float(x), float(y))
+        if frame is None:
+            return None
+        offsets.append(frame[2])
+    return (offsets[1] - offsets[0]) / dt_s
 
 
 def _turn_rad(ctx: StepContext, k: int) -> float:

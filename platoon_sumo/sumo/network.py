@@ -83,10 +83,11 @@ class Network:
         """(k, 2) centre-line of a lane, internal junction lanes included."""
         return np.asarray(self._net.getLane(lane_id).getShape(), dtype=np.float64)
 
-    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float] | None:
-        """(direction [rad], position [m]) at the point of the lane's centre line nearest
-        to (x, y): the direction of its segment, and its distance along the lane from
-        the start (0 to the lane's length); None for an unknown lane."""
+    def lane_frame(self, lane_id: str, x_m: float, y_m: float) -> tuple[float, float, float] | None:
+        """(direction [rad], position [m], offset [m]) at the point of the lane's centre
+        line nearest to (x, y): the direction of its segment, its distance along the
+        lane from the start (0 to the lane's length), and how far (x, y) is from that
+        segment's line, to its left (+) or right (-); None for an unknown lane."""
         try:
             shape = self.lane_shape(lane_id)
         except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
@@ -100,7 +101,8 @@ class Network:
         k = int(np.argmin(np.hypot(*(nearest - (x_m, y_m)).T)))
         seg = np.sqrt(length2)
         position = float(seg[:k].sum() + t[k] * seg[k])
-        return float(np.arctan2(d[k, 1], d[k, 0])), position
+        offset = float(d[k, 0] * (y_m - a[k, 1]) - d[k, 1] * (x_m - a[k, 0])) / seg[k]
+        return float(np.arctan2(d[k, 1], d[k, 0])), position, offset
 
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
     def junction_successor(self, lane_id: str) -> str | None:

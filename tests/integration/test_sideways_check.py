@@ -67,6 +67,6 @@ def test_a_car_waits_to_move_over_while_another_drives_beside_it(write_scenario,
 def test_without_the_check_it_drives_into_the_car_beside(
     write_scenario, tmp_path, monkeypatch: pytest.MonkeyPatch
 ):
-    monkeypatch.setattr(actuation, "sideways_conflicts", lambda *a: np.zeros(len(a[2]), bool))
+    monkeypatch.setattr(actuation, "sideways_conflicts", lambda *a: np.zeros(len(a[3]), bool))
     summary, _, _ = run_weave(write_scenario, tmp_path)
     assert summary["collisions"] > 0
