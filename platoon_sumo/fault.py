@@ -15,7 +15,14 @@ The rules, in order (docs/metrics.md):
    was not: the other could not react to it (a cut-in).
 1. **Sideways into the other's path.** A vehicle beside the other (`BESIDE_SHARE`)
    moving across its lane towards it faster than `SIDEWAYS_MPS` (a lane change, a
-   drift, a cut-in) while the other does not is at fault.
+   drift, a cut-in) while the other does not is at fault. Motion across the lane is
+   the change of the front's distance to the lane's centre line where that is known.
+1b. **Passed too close beside.** Otherwise, of two vehicles beside each other on their
+   lanes, neither moving across them faster than `SIDEWAYS_MPS`, the one driving
+   faster along its lane (by more than `TIE_MPS`) is at fault: it is passing the other
+   with too little room for the bodies, which on a bend swing across the lane (SUMO
+   lets a car pass another inside a wide lane 0.2 m apart, and on the race circuit's
+   hairpin their bodies, drawn from back to front along the lane, overlapped by 0.9 m).
 2. **Front into side or rear.** Otherwise, when exactly one vehicle closes on the other
    and has the contact in the front quarter of its body, that vehicle struck the other
    (a rear-end, a car running into a crossing car's side).
@@ -85,6 +92,7 @@ PLACED_REACTION_S = 1.0
 PLACED = "placed onto the other (moved farther than its speed)"
 PLACED_RECENTLY = "placed within the other's reach less than a reaction time before"
 SIDEWAYS = "moved sideways into the other's path"
+PASSING = "passed the other too close beside it"
 FRONT = "front into the other's side or rear"
 CLOSING = "closing faster"
 SWEPT = "swept into a standing vehicle"
@@ -158,21 +166,43 @@ def contact_fault(
     turns = (float(turn_a_rad), float(turn_b_rad))
     across = (across_a_mps, across_b_mps)
 
-    def sideways(i: int) -> float:
-        """Speed of vehicle i across its lane, towards the side where the other is."""
+    def side(i: int) -> float:
+        """Where the other is across vehicle i's lane (left +), 0 when more ahead or
+        behind than beside (or i is not on a lane)."""
         lane = lanes[i]
         if lane is None:
             return 0.0
         nx, ny = -math.sin(lane), math.cos(lane)  # the lane's left normal
         j = 1 - i
-        side = (rects[j, CX] - rects[i, CX]) * nx + (rects[j, CY] - rects[i, CY]) * ny
+        apart = (rects[j, CX] - rects[i, CX]) * nx + (rects[j, CY] - rects[i, CY]) * ny
         beside = BESIDE_SHARE * 0.5 * (rects[i, WIDTH] + rects[j, WIDTH])
-        if abs(side) < beside:  # more ahead or behind than beside: not a sideways move
+        return apart if abs(apart) >= beside else 0.0
+
+    def sideways(i: int) -> float:
+        """Speed of vehicle i across its lane, towards the side where the other is."""
+        lane, where = lanes[i], side(i)
+        if lane is None or where == 0.0:
             return 0.0
         own = across[i]
         if own is None:
-            own = velocity[i][0] * nx + velocity[i][1] * ny
-        return math.copysign(1.0, side) * own
+            own = velocity[i][0] * -math.sin(lane) + velocity[i][1] * math.cos(lane)
+        return math.copysign(1.0, where) * own
+
+    def passing() -> int | None:
+        """Beside each other on their lanes, both keeping their place across them (the
+        bodies met on a bend): the one driving faster along its lane, passing the other."""
+        if None in lanes or None in across or 0.0 in (side(0), side(1)):
+            return None
+        if max(abs(a) for a in across if a is not None) > SIDEWAYS_MPS:
+            return None
+        along = [
+            velocity[i][0] * math.cos(lane) + velocity[i][1] * math.sin(lane)
+            for i, lane in enumerate(lanes)
+            if lane is not None
+        ]
+        if abs(along[0] - along[1]) <= TIE_MPS:
+            return None
+        return 0 if along[0] > along[1] else 1
 
     # each vehicle's own motion over the step, the other held at its footprint of the
     # step's start: how fast it closed the gap between them (rigid: turns included)
@@ -204,6 +234,9 @@ def contact_fault(
     into = [sideways(i) > SIDEWAYS_MPS for i in (0, 1)]
     if into[0] != into[1]:
         return Fault(0 if into[0] else 1, SIDEWAYS, cx, cy)
+    passer = passing()
+    if passer is not None:
+        return Fault(passer, PASSING, cx, cy)
     # the other must not close on it too (a head-on sideswipe: closing faster decides)
     fronts = [struck_with_front(i) and closing[1 - i] <= TIE_MPS for i in (0, 1)]
     if fronts[0] != fronts[1]:

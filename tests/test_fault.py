@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from platoon_sumo.fault import (
     CLOSING,
     FRONT,
+    PASSING,
     PLACED,
     PLACED_RECENTLY,
     SIDEWAYS,
@@ -67,9 +68,35 @@ def test_a_body_keeping_its_place_across_a_bending_lane_does_not_move_sideways()
     args = (inner, outer, 2.9, 3.0, 0.0, 0.0, motion, (3.0, 0.0))
     assert contact_fault(*args).reason == SIDEWAYS  # against the lane's direction
     kept = contact_fault(*args, across_a_mps=0.0, across_b_mps=0.0)
-    assert kept.reason != SIDEWAYS
+    assert (kept.at_fault, kept.reason) == (1, PASSING)  # the faster, passing
     drifting = contact_fault(*args, across_a_mps=-0.5, across_b_mps=0.0)
     assert (drifting.at_fault, drifting.reason) == (0, SIDEWAYS)
+
+
+def test_bodies_meeting_beside_each_other_on_a_bend_are_the_passing_cars():
+    """Race circuit, seed 44, 428-431 s: a SUMO car passed a platoon car 0.2 m beside it
+    in the 10 m lane through a hairpin, both at a fixed place across the lane; their
+    bodies, turned differently, overlapped by up to 0.9 m. The faster is passing."""
+    slow, fast = car(0.0, 0.0, 0.3), car(0.3, -1.8, 0.05)
+    lanes = (0.0, 0.0)
+    motion_slow, motion_fast = (5.0, 0.0), (5.6, 0.0)
+
+    def judge(v_slow: float, v_fast: float, across_fast: float):
+        return contact_fault(
+            slow, fast, v_slow, v_fast, *lanes, (v_slow, 0.0), (v_fast, 0.0),
+            across_a_mps=0.0, across_b_mps=across_fast,
+        )  # fmt: skip
+
+    assert (judge(5.0, 5.6, 0.0).at_fault, judge(5.0, 5.6, 0.0).reason) == (1, PASSING)
+    assert judge(5.6, 5.0, 0.0).at_fault == 0  # the other way round
+    assert judge(5.0, 5.05, 0.0).reason != PASSING  # as fast: a tie, the later rules
+    drifting = judge(5.0, 5.6, 0.5)  # the passing car moves over, to the left: rule 1
+    assert drifting.reason == SIDEWAYS
+    swapped = contact_fault(
+        fast, slow, 5.6, 5.0, *lanes, motion_fast, motion_slow, across_a_mps=0.0,
+        across_b_mps=0.0,
+    )  # fmt: skip
+    assert (swapped.at_fault, swapped.reason) == (0, PASSING)
 
 
 def test_side_swipe_is_the_drifting_car():
