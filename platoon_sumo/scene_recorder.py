@@ -81,17 +81,21 @@ class SceneRecorder(StepHook):
         py = np.array([v.front_y_m for v in record.vehicles])
         dx = world.front_x_m[:, None] - px[None, :]
         dy = world.front_y_m[:, None] - py[None, :]
-        near = np.hypot(dx, dy).min(axis=1, initial=np.inf) <= self.radius_m
-        for i in np.flatnonzero(near):
-            vid = world.ids[i]
-            member = ours.get(vid)
-            self._rows.append((
+        near = np.flatnonzero(np.hypot(dx, dy).min(axis=1, initial=np.inf) <= self.radius_m)
+        ids = [world.ids[i] for i in near.tolist()]
+        members = [ours.get(vid) for vid in ids]
+        self._rows.extend(
+            (
                 time_s, vid, member.platoon_id if member else None,
-                member.member_index if member else None, round(float(world.front_x_m[i]), 3),
-                round(float(world.front_y_m[i]), 3), round(float(world.yaw_rad[i]), 4),
-                float(world.length_m[i]), float(world.width_m[i]),
-                round(float(world.speed_mps[i]), 3),
-            ))  # fmt: skip
+                member.member_index if member else None, round(x, 3), round(y, 3),
+                round(yaw, 4), length, width, round(speed, 3),
+            )
+            for vid, member, x, y, yaw, length, width, speed in zip(
+                ids, members, world.front_x_m[near].tolist(), world.front_y_m[near].tolist(),
+                world.yaw_rad[near].tolist(), world.length_m[near].tolist(),
+                world.width_m[near].tolist(), world.speed_mps[near].tolist(), strict=True,
+            )
+        )  # fmt: skip
         for v in record.vehicles:
             scan = v.scan
             if scan is None:
