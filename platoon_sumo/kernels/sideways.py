@@ -30,13 +30,13 @@ def sideways_conflicts(
     Every rectangle (rows of `rects`: centre x, y, yaw, length, width) drives on at its
     speed, turning at its yaw rate (`advanced`); subject k (`subjects[k]`, a row of
     `rects`; -1: not in the world) is also shifted to its left (negative: right), by
-    `shift_m[k]` at `horizon_s` and in proportion before. A conflict is another rectangle that the
-    shifted subject, `margin_m` larger on every side, overlaps deeper than the
-    unshifted one does, at the end of every step of `step_s` within the horizon and at
-    the horizon (only there with `step_s` 0: a car passing beside at speed is level
-    with the subject now and gone at the horizon's end): the sideways part of the move,
-    not driving on, causes it (a car closing on the one ahead in its lane is the
-    longitudinal layer's business)."""
+    `shift_m[k]` at `horizon_s` and in proportion before. A conflict is another
+    rectangle that the shifted subject, `margin_m` larger on every side, overlaps
+    deeper than the unshifted one does, at the end of every step of `step_s` within
+    the horizon and at the horizon (only there with `step_s` 0: a car passing beside
+    at speed is level with the subject now and gone at the horizon's end): the
+    sideways part of the move, not driving on, causes it (a car closing on the one
+    ahead in its lane is the longitudinal layer's business)."""
     n = rects.shape[0]
     out = np.zeros(subjects.shape[0], dtype=np.bool_)
     ax = np.empty(n)
