@@ -406,7 +406,11 @@ def test_a_car_overtaking_on_a_curve_is_predicted_along_the_curve():
     speed=st.floats(0.0, 40.0), rate=st.floats(-2.0, 2.0), time=st.floats(0.0, 2.0),
 )  # fmt: skip
 def test_advanced_drives_on_at_constant_speed_and_yaw_rate(x, y, yaw, speed, rate, time):
-    """Oracle: the same motion integrated in 4,000 small steps (midpoint rule)."""
+    """Oracle: the same motion integrated in 4,000 small steps (midpoint rule).
+
+    The midpoint rule's chord error is speed * time * (rate * step)^2 / 24, at most
+    3.4 µm here, so positions are compared to 10 µm.
+    """
     steps = 4000
     dt = time / steps
     px, py, heading = x, y, yaw
@@ -415,8 +419,8 @@ def test_advanced_drives_on_at_constant_speed_and_yaw_rate(x, y, yaw, speed, rat
         px, py = px + math.cos(mid) * speed * dt, py + math.sin(mid) * speed * dt
         heading += rate * dt
     got = advanced(x, y, yaw, speed, rate, time)
-    assert got[0] == pytest.approx(px, abs=1e-6)
-    assert got[1] == pytest.approx(py, abs=1e-6)
+    assert got[0] == pytest.approx(px, abs=1e-5)
+    assert got[1] == pytest.approx(py, abs=1e-5)
     assert got[2] == pytest.approx(heading, abs=1e-9)
 
 
