@@ -66,6 +66,8 @@ class ActuationPort(Protocol):
         self, vehicle_ids: Sequence[str]
     ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
 
+    def bends_ahead(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray]: ...
+
     def sumo_lateral_speeds(
         self, vehicle_ids: Sequence[str], offset_m: FloatArray
     ) -> FloatArray: ...
@@ -201,11 +203,13 @@ MAX_LANE_ANGLE_RAD = math.radians(60.0)
 SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
 #: Sublane actuation: a sidestep (`ActuationBatch.sidestep_m`) runs at most this fast [m/s].
 SIDESTEP_SPEED_MPS = 0.5
-#: Sublane actuation: this long [s] before the end of its lane (at its speed) a car's
-#: sideways move is bounded so that its body is inside the lane and the lanes after it
-#: when it gets there (`fit_at_lane_end`), moving back at up to `LANE_END_FIT_MPS`
-#: [m/s] (SUMO's default `maxSpeedLat`) or as fast as the controller asked.
-LANE_END_FIT_S, LANE_END_FIT_MPS = 3.0, 1.0
+#: Sublane actuation: this long [s] before the end of its lane or a sharp bend (at its
+#: speed) a car's sideways move is bounded so that it gets there within the room it
+#: has there (`fit_ahead`), moving back at up to `FIT_LATERAL_MPS` [m/s] (SUMO's
+#: default `maxSpeedLat`) or as fast as the controller asked, starting earlier when it
+#: needs longer, plus `FIT_RAMP_S` [s] (SUMO's lateral speed grows at its default
+#: `lcAccelLat` of 1 m/s^2).
+FIT_AHEAD_S, FIT_LATERAL_MPS, FIT_RAMP_S = 3.0, 1.0, 1.0
 
 
 @ACTUATORS.register("sublane")
@@ -246,10 +250,12 @@ class SublaneActuation:
         its corner in the member's way, which would otherwise wait for a car that
         waits for it.
 
-        Near the end of its lane (`LANE_END_FIT_S`) and inside a junction, the offset
+        Near the end of its lane (`FIT_AHEAD_S`) and inside a junction, the offset
         is bounded so that the body is inside the lane and the lanes after it when the
-        car gets there (`fit_at_lane_end`): SUMO lets a car onto the next lane only so,
+        car gets there (`fit_ahead`): SUMO lets a car onto the next lane only so,
         and holds it at the junction's exit otherwise, in the way of the cars beside.
+        Before a sharp bend of its lane's shape the offset is bounded the same way, to
+        where SUMO does not jump the car along the road there (`sumo.bends_ahead`).
 
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
@@ -278,7 +284,9 @@ class SublaneActuation:
             step = batch.sidestep_m[side] / batch.dt_s
             lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
         offset, room, to_end = sumo.lane_room(batch.vehicle_ids)
-        lateral = fit_at_lane_end(lateral, offset, room, to_end, speed, batch.dt_s)
+        lateral = fit_ahead(lateral, offset, room, to_end, speed, batch.dt_s)
+        room, to_bend = sumo.bends_ahead(batch.vehicle_ids)
+        lateral = fit_ahead(lateral, offset, room, to_bend, speed, batch.dt_s)
         around = batch.surroundings
         held: list[str] = []
         if around is not None:
@@ -330,22 +338,28 @@ def _jumps_into_others(
     return out
 
 
-def fit_at_lane_end(
+def fit_ahead(
     lateral_mps: FloatArray,
     offset_m: FloatArray,
     room_m: FloatArray,
-    to_end_m: FloatArray,
+    to_m: FloatArray,
     speed_mps: FloatArray,
     dt_s: float,
 ) -> FloatArray:
-    """The lateral speeds (left +) bounded so that a car reaching the end of its lane
-    within `LANE_END_FIT_S` at its speed gets there with its offset within `room_m` of
-    the lane's centre (held there once inside; moved back at up to `LANE_END_FIT_MPS`,
-    or the speed asked for if faster, from outside). A car standing at the end of its
-    lane counts as arriving within one step: it moves back into the room it needs to
-    go on."""
-    left_s = np.maximum(to_end_m / np.maximum(speed_mps, 1e-3), dt_s)
-    fitted = np.clip(lateral_mps, (-room_m - offset_m) / left_s, (room_m - offset_m) / left_s)
-    cap = np.maximum(np.abs(lateral_mps), LANE_END_FIT_MPS)
-    fitted = np.clip(fitted, -cap, cap)
-    return np.where(left_s <= LANE_END_FIT_S, fitted, lateral_mps)
+    """The lateral speeds (left +) bounded so that a car reaching a point `to_m` ahead
+    (its lane's end, a sharp bend of its lane) soon at its speed gets there with its
+    offset within `room_m` of the lane's centre (held there once inside; moved back at
+    up to `FIT_LATERAL_MPS`, or the speed asked for if faster, from outside). Soon is
+    within `FIT_AHEAD_S`, or the time moving back takes, with `FIT_RAMP_S` for SUMO to
+    reach that lateral speed, if longer. A car standing at the point counts as arriving
+    within one step: it moves back into the room it needs to go on."""
+    left_s = np.maximum(to_m / np.maximum(speed_mps, 1e-3), dt_s)
+    back_s = (np.abs(offset_m) - room_m) / FIT_LATERAL_MPS + FIT_RAMP_S
+    near = left_s <= np.maximum(back_s, FIT_AHEAD_S)
+    out = np.array(lateral_mps, dtype=np.float64)
+    if near.any():
+        asked, offset, room, left = out[near], offset_m[near], room_m[near], left_s[near]
+        fitted = np.clip(asked, (-room - offset) / left, (room - offset) / left)
+        cap = np.maximum(np.abs(asked), FIT_LATERAL_MPS)
+        out[near] = np.clip(fitted, -cap, cap)
+    return out

@@ -106,7 +106,7 @@ def test_a_car_inside_a_junction_beside_its_next_lane_holds_the_car_behind(backe
 
 def test_a_car_handed_to_sumos_lane_change_is_steered_by_us_inside_a_junction(backend):
     """SUMO does not fit the body of a car it moves into the lane after a junction; our
-    steering does (`actuation.fit_at_lane_end`), so a car handed over is given back there."""
+    steering does (`actuation.fit_ahead`), so a car handed over is given back there."""
     standing("changer", "ramp_out", 0, 90.0)
     backend.step()
     veh = libsumo.vehicle

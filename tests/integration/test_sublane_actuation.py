@@ -271,7 +271,7 @@ def test_a_shift_too_steep_to_steer_is_sumos_lane_change(
         lateral_speed = np.gradient(rows["y_m"].to_numpy(), rows["time_s"].to_numpy())
         sideways[vid] = float(np.abs(lateral_speed[on_ab]).max())
     if not steep_to_sumo:  # the mechanism: the leader steered along the path (bounded
-        # near the lane's end so that it fits the next lane, `fit_at_lane_end`)
+        # near the lane's end so that it fits the next lane, `fit_ahead`)
         assert sideways["p.0"] > 1.5
         return
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
@@ -304,9 +304,9 @@ def test_a_car_reaching_a_split_beside_its_lane_goes_on(
     when it reaches the split: SUMO lets it onto the one-lane road only with its body
     inside that lane, and held it at the junction's exit for good (the `highway` game
     network, seed 44: the cars turning off then ran into it). Near the lane's end its
-    sideways move is bounded so that it fits (`fit_at_lane_end`)."""
+    sideways move is bounded so that it fits (`fit_ahead`)."""
     if not fitted:
-        monkeypatch.setattr(actuation, "LANE_END_FIT_S", 0.0)
+        monkeypatch.setattr(actuation, "fit_ahead", lambda lateral_mps, *a: lateral_mps)
     net = build_net(tmp_path, SPLIT_NODES, SPLIT_EDGES, SPLIT_CONNECTIONS, "--no-turnarounds")
     scenario = {
         "simulation": {"step_s": 0.1, "end_s": 90.0, "seed": 1, "lateral_resolution_m": 0.8},
