@@ -203,12 +203,12 @@ MAX_LANE_ANGLE_RAD = math.radians(60.0)
 SIDEWAYS_HORIZON_S, SIDEWAYS_CLEARANCE_M = 0.5, 0.2
 #: Sublane actuation: a sidestep (`ActuationBatch.sidestep_m`) runs at most this fast [m/s].
 SIDESTEP_SPEED_MPS = 0.5
-#: Sublane actuation: this long [s] before the end of its lane or a sharp bend (at its
-#: speed) a car's sideways move is bounded so that it gets there within the room it
-#: has there (`fit_ahead`), moving back at up to `FIT_LATERAL_MPS` [m/s] (SUMO's
-#: default `maxSpeedLat`) or as fast as the controller asked, starting earlier when it
-#: needs longer, plus `FIT_RAMP_S` [s] (SUMO's lateral speed grows at its default
-#: `lcAccelLat` of 1 m/s^2).
+#: Sublane actuation: this long [s] before the end of its lane or a sharp bend (as fast
+#: as it could get there) a car's sideways move is bounded so that it gets there within
+#: the room it has there (`fit_ahead`), moving back at up to `FIT_LATERAL_MPS` [m/s]
+#: (SUMO's default `maxSpeedLat`) or as fast as the controller asked, starting earlier
+#: when it needs longer, plus `FIT_RAMP_S` [s] (SUMO's lateral speed grows at its
+#: default `lcAccelLat` of 1 m/s^2).
 FIT_AHEAD_S, FIT_LATERAL_MPS, FIT_RAMP_S = 3.0, 1.0, 1.0
 
 
@@ -254,8 +254,9 @@ class SublaneActuation:
         is bounded so that the body is inside the lane and the lanes after it when the
         car gets there (`fit_ahead`): SUMO lets a car onto the next lane only so,
         and holds it at the junction's exit otherwise, in the way of the cars beside.
-        Before a sharp bend of its lane's shape the offset is bounded the same way, to
-        where SUMO does not jump the car along the road there (`sumo.bends_ahead`).
+        Before each of the next sharp bends of its lane's shape the offset is bounded
+        the same way, to where SUMO does not jump the car along the road there
+        (`sumo.bends_ahead`).
 
         No sideways move goes into a car beside: one that would bring the vehicle,
         `SIDEWAYS_CLEARANCE_M` larger, deeper into another at any step within
@@ -284,9 +285,11 @@ class SublaneActuation:
             step = batch.sidestep_m[side] / batch.dt_s
             lateral[side] = np.clip(step, -SIDESTEP_SPEED_MPS, SIDESTEP_SPEED_MPS)
         offset, room, to_end = sumo.lane_room(batch.vehicle_ids)
-        lateral = fit_ahead(lateral, offset, room, to_end, speed, batch.dt_s)
-        room, to_bend = sumo.bends_ahead(batch.vehicle_ids)
-        lateral = fit_ahead(lateral, offset, room, to_bend, speed, batch.dt_s)
+        lateral = fit_ahead(lateral, offset, room, to_end, speed, 0.0, batch.dt_s)
+        rooms, to_bends = sumo.bends_ahead(batch.vehicle_ids)
+        accel = batch.limits.max_accel_mps2
+        for room, to_bend in zip(rooms.T, to_bends.T, strict=True):
+            lateral = fit_ahead(lateral, offset, room, to_bend, speed, accel, batch.dt_s)
         around = batch.surroundings
         held: list[str] = []
         if around is not None:
@@ -344,16 +347,24 @@ def fit_ahead(
     room_m: FloatArray,
     to_m: FloatArray,
     speed_mps: FloatArray,
+    accel_mps2: float,
     dt_s: float,
 ) -> FloatArray:
     """The lateral speeds (left +) bounded so that a car reaching a point `to_m` ahead
-    (its lane's end, a sharp bend of its lane) soon at its speed gets there with its
-    offset within `room_m` of the lane's centre (held there once inside; moved back at
-    up to `FIT_LATERAL_MPS`, or the speed asked for if faster, from outside). Soon is
-    within `FIT_AHEAD_S`, or the time moving back takes, with `FIT_RAMP_S` for SUMO to
-    reach that lateral speed, if longer. A car standing at the point counts as arriving
-    within one step: it moves back into the room it needs to go on."""
-    left_s = np.maximum(to_m / np.maximum(speed_mps, 1e-3), dt_s)
+    (its lane's end, a sharp bend of its lane) soon gets there with its offset within
+    `room_m` of the lane's centre (held there once inside; moved back at up to
+    `FIT_LATERAL_MPS`, or the speed asked for if faster, from outside). Soon is within
+    `FIT_AHEAD_S`, or the time moving back takes, with `FIT_RAMP_S` for SUMO to reach
+    that lateral speed, if longer; the time to get there is the shortest the car can
+    take speeding up at `accel_mps2` (a bend: a car standing before it may drive off
+    onto it), or at its speed with 0 (a lane's end: SUMO holds a car there until it
+    fits). A car at the point counts as arriving within one step: it moves back into
+    the room it needs to go on."""
+    v, to, a = np.maximum(speed_mps, 0.0), np.minimum(to_m, 1e9), accel_mps2  # 1e9: no point
+    if a > 0.0:
+        left_s = np.maximum((np.sqrt(v * v + 2.0 * a * to) - v) / a, dt_s)  # v t + a t^2 / 2
+    else:
+        left_s = np.maximum(to / np.maximum(v, 1e-3), dt_s)
     back_s = (np.abs(offset_m) - room_m) / FIT_LATERAL_MPS + FIT_RAMP_S
     near = left_s <= np.maximum(back_s, FIT_AHEAD_S)
     out = np.array(lateral_mps, dtype=np.float64)

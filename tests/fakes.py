@@ -194,7 +194,7 @@ class FakeBackend:
         return np.zeros(len(vehicle_ids)), unbounded, unbounded.copy()
 
     def bends_ahead(self, vehicle_ids: Sequence[str]) -> tuple[FloatArray, FloatArray]:
-        unbounded = np.full(len(vehicle_ids), np.inf)  # the fake's lane is straight
+        unbounded = np.full((len(vehicle_ids), 1), np.inf)  # the fake's lane is straight
         return unbounded, unbounded.copy()
 
     def sumo_lateral_speeds(self, vehicle_ids: Sequence[str], offset_m: FloatArray) -> FloatArray:

@@ -82,6 +82,10 @@ MISFIT_TOLERANCE_M = 0.1
 #: (`SumoBackend.lane_change_landings`), as is a move this long at a bend of a lane's
 #: shape (`SumoBackend.bends_ahead`).
 LANDING_SHIFT_M = 0.3
+#: Sublane actuation: so many sharp bends of its lane ahead of a car are fitted for, and
+#: vertices of a lane's shape this close together [m] are one bend
+#: (`SumoBackend.bends_ahead`).
+BENDS_AHEAD, BEND_MERGE_M = 3, 2.0
 #: A vehicle standing this close behind a red light is queued at it, not gridlocked [m].
 RED_QUEUE_M = 250.0
 #: Lane actuation: a controller's lane request (a change, or keeping the lane against
@@ -652,12 +656,12 @@ class SumoBackend:
     def bends_ahead(
         self, vehicle_ids: Sequence[str]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Sublane actuation, per car: how far [m] from its lane's centre its front may
-        cross the next bend of its lane's shape ahead without SUMO moving it more than
-        `LANDING_SHIFT_M` there, and the distance from its front bumper to that bend
-        [m]; unbounded where no bend of the rest of its lane is that sharp, or the car
-        is on no lane or in a junction. Call `lane_room` or `body_directions` first in
-        the same step.
+        """Sublane actuation, per car and for each of the next `BENDS_AHEAD` sharp bends
+        of its lane's shape ahead of its front bumper (columns, nearest first): how far
+        [m] from the lane's centre the front may cross it without SUMO moving the car
+        more than `LANDING_SHIFT_M` there, and the distance to it [m]; unbounded where
+        the rest of the lane has no more such bends, or the car is on no lane or in a
+        junction. Call `body_directions` first in the same step.
 
         SUMO puts a car's front at its lateral offset square to the shape's segment
         under it: crossing a vertex where the shape turns by an angle a, a car d beside
@@ -666,36 +670,50 @@ class SumoBackend:
         lanes, a 30 degree vertex) a follower 3.5 m left of its lane's centre jumped
         2.3 m onto its leader (seed 42, 220.2 s)."""
         n = len(vehicle_ids)
-        room, to_bend = np.full(n, math.inf), np.full(n, math.inf)
+        room = np.full((n, BENDS_AHEAD), math.inf)
+        to_bend = np.full((n, BENDS_AHEAD), math.inf)
         for i, vid in enumerate(vehicle_ids):
             known = self._fronts.get(vid)
             if known is None or known[0].startswith(":"):
                 continue
             lane_id, front = known
             positions, rooms = self._sharp_bends(lane_id)
-            k = bisect.bisect_right(positions, front)
-            if k < len(positions):
-                room[i], to_bend[i] = rooms[k], positions[k] - front
+            k = bisect.bisect_right(positions, front)  # SUMO: a front on a vertex is past it
+            for c, j in enumerate(range(k, min(k + BENDS_AHEAD, len(positions)))):
+                room[i, c], to_bend[i, c] = rooms[j], positions[j] - front
         return room, to_bend
 
     def _sharp_bends(self, lane_id: str) -> tuple[list[float], list[float]]:
-        """The lane positions of the vertices of a lane's shape where a car within half
-        the lane's width of its centre could be moved more than `LANDING_SHIFT_M` (see
-        `bends_ahead`), and the largest offset that is not."""
+        """The lane positions of the bends of a lane's shape where a car within half the
+        lane's width of its centre could be moved more than `LANDING_SHIFT_M` (see
+        `bends_ahead`), and the largest offset that is not. Vertices within
+        `BEND_MERGE_M` of each other are one bend (a car may cross them in one step),
+        turning by the larger of their sum and their largest turn."""
         cached = self._bends.get(lane_id)
         if cached is None:
             xs, ys, cum, scale = self._lane_polyline(lane_id)
+            # segments of some length, their directions, and the turns between them
+            kept = [j for j in range(len(xs) - 1) if cum[j + 1] - cum[j] > 1e-9]
+            angles = [math.atan2(ys[j + 1] - ys[j], xs[j + 1] - xs[j]) for j in kept]
+            vertices = [
+                (cum[kept[k]] / scale, math.remainder(angles[k] - angles[k - 1], math.tau))
+                for k in range(1, len(kept))
+            ]
+            groups: list[tuple[float, float, float]] = []  # position, sum, largest turn
+            for at, turn in vertices:
+                if groups and at - groups[-1][0] <= BEND_MERGE_M:
+                    first, total, largest = groups[-1]
+                    groups[-1] = (first, total + turn, max(largest, abs(turn)))
+                else:
+                    groups.append((at, turn, abs(turn)))
             half = 0.5 * self.lane_width(lane_id)
             positions: list[float] = []
             rooms: list[float] = []
-            # segments of some length, their directions and where they start
-            kept = [j for j in range(len(xs) - 1) if cum[j + 1] - cum[j] > 1e-9]
-            angles = [math.atan2(ys[j + 1] - ys[j], xs[j + 1] - xs[j]) for j in kept]
-            for k in range(1, len(kept)):
-                turn = abs(math.remainder(angles[k] - angles[k - 1], math.tau))
+            for at, total, largest in groups:
+                turn = min(max(abs(total), largest), math.pi)
                 bound = LANDING_SHIFT_M / (2.0 * math.sin(0.5 * turn)) if turn else math.inf
                 if bound < half:
-                    positions.append(cum[kept[k]] / scale)
+                    positions.append(at)
                     rooms.append(bound)
             cached = self._bends[lane_id] = (positions, rooms)
         return cached
