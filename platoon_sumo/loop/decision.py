@@ -3,6 +3,8 @@ supervisor, which may only lower the speed."""
 
 from __future__ import annotations
 
+import dataclasses
+
 from platoon_sumo.control import Command, Observation
 from platoon_sumo.control.base import step_batch
 from platoon_sumo.events import EventKind
@@ -11,6 +13,20 @@ from platoon_sumo.loop.fleet import LATERAL, SPEED, YAW, Member, X, Y
 from platoon_sumo.sensors.laser import LaserScan
 from platoon_sumo.supervisor import EMERGENCY, supervise
 
+_OBSERVATION_FIELDS = tuple(f.name for f in dataclasses.fields(Observation))
+
+
+def frozen_observation(values: dict[str, object]) -> Observation:
+    """`Observation(**values)` for a dictionary of every field, which becomes the
+    instance's own: the frozen dataclass's `__init__` sets its 24 fields one
+    `object.__setattr__` at a time, about 9 µs a vehicle and step against 1 µs."""
+    if len(values) != len(_OBSERVATION_FIELDS):
+        missing = sorted(set(_OBSERVATION_FIELDS) - set(values))
+        raise TypeError(f"an Observation needs every field; missing {missing}")
+    obs = object.__new__(Observation)
+    object.__setattr__(obs, "__dict__", values)
+    return obs
+
 
 def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Observation:
     """What a controller sees: odometry (`kin`, its row of the fleet's state), its route,
@@ -18,32 +34,32 @@ def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Obse
     messages."""
     cfg = m.platoon.config.vehicle
     scan = m.sensors.get("laser")
-    return Observation(
-        time_s=time_s,
-        dt_s=dt_s,
-        vehicle_id=m.id,
-        role=m.plan.role,
-        x_m=kin[X],
-        y_m=kin[Y],
-        yaw_rad=kin[YAW],
-        speed_mps=kin[SPEED],
-        front_offset_m=cfg.front_offset_m,
-        length_m=cfg.length_m,
-        width_m=cfg.width_m,
-        limits=m.platoon.limits,
-        path=m.path,
-        lane_offset_m=0.0 if m.actuator.steers else kin[LATERAL],
-        on_sumo_lanes=m.actuator.sumo_drives,
-        signal=m.signal,
-        link_ahead=m.link_ahead,
-        lane_change=m.lane_change,
-        vehicle_ahead=m.vehicle_ahead,
-        obstacle_ahead=m.obstacle_ahead,
-        scan=scan if isinstance(scan, LaserScan) else None,
-        sensors=dict(m.sensors),
-        platoon_id=m.platoon_id,
-        index=m.index,
-    )
+    return frozen_observation({
+        "time_s": time_s,
+        "dt_s": dt_s,
+        "vehicle_id": m.id,
+        "role": m.plan.role,
+        "x_m": kin[X],
+        "y_m": kin[Y],
+        "yaw_rad": kin[YAW],
+        "speed_mps": kin[SPEED],
+        "front_offset_m": cfg.front_offset_m,
+        "length_m": cfg.length_m,
+        "width_m": cfg.width_m,
+        "limits": m.platoon.limits,
+        "path": m.path,
+        "lane_offset_m": 0.0 if m.actuator.steers else kin[LATERAL],
+        "on_sumo_lanes": m.actuator.sumo_drives,
+        "signal": m.signal,
+        "link_ahead": m.link_ahead,
+        "lane_change": m.lane_change,
+        "vehicle_ahead": m.vehicle_ahead,
+        "obstacle_ahead": m.obstacle_ahead,
+        "scan": scan if isinstance(scan, LaserScan) else None,
+        "sensors": dict(m.sensors),
+        "platoon_id": m.platoon_id,
+        "index": m.index,
+    })  # fmt: skip
 
 
 def desired_accel(m: Member, command: Command, dt_s: float, speed_mps: float) -> float:

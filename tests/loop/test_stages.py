@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -193,6 +193,42 @@ def test_decide_supervises_and_counts_an_emergency_once_per_episode(write_scenar
     ctx.events = []
     Decide()(ctx)
     assert ctx.events == []  # the same episode: counted when it began
+
+
+class Watching(Scripted):
+    """`Scripted`, keeping every observation it is given."""
+
+    seen: ClassVar[list[Any]] = []
+
+    def step(self, observation: Any) -> Any:
+        Watching.seen.append(observation)
+        return super().step(observation)
+
+
+def test_the_observation_a_controller_gets_is_the_frozen_dataclass_of_its_fields(
+    write_scenario,
+):
+    """Decide builds observations without the dataclass's `__init__` (for speed): what a
+    controller gets must be the same value, frozen, and work with `dataclasses`."""
+    import dataclasses
+
+    from platoon_sumo.control import Observation
+
+    backend = FakeBackend()
+    leader = {"type": "tests.loop.test_stages:Watching"}
+    ctx = context(plan(write_scenario, members=1, leader=leader), backend)
+    departed(ctx, backend)
+    RouteProgress()(ctx)
+    Scripted.speed, Watching.seen = 5.0, []
+    Decide()(ctx)
+    (obs,) = Watching.seen
+    fields = {f.name: getattr(obs, f.name) for f in dataclasses.fields(Observation)}
+    assert type(obs) is Observation and obs == Observation(**fields)
+    assert dataclasses.asdict(obs).keys() == fields.keys()
+    assert dataclasses.replace(obs, speed_mps=1.0).speed_mps == 1.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        obs.speed_mps = 1.0
+    assert obs.vehicle_id == "p.0" and obs.path is not None
 
 
 def test_a_member_sumo_drives_is_only_checked_never_reported_braking(write_scenario):
