@@ -113,6 +113,9 @@ class FakeBackend:
     def lane_occupants(self, lane_id: str) -> list[LaneOccupant]:
         return [(vid, v.x_m, v.speed_mps, v.length_m) for vid, v in self.vehicles.items()]
 
+    def next_junction_lane(self, vehicle_id: str) -> str:
+        return ""
+
     def lane_shape(self, lane_id: str) -> FloatArray:
         return np.array([[0.0, LANE_Y_M], [3000.0, LANE_Y_M]])
 

@@ -44,6 +44,9 @@ AHEAD_S, AHEAD_FRACTIONS = 1.0, (0.25, 0.5, 0.75, 1.0)
 #: Such cars are looked at within a corridor's length plus this of a member [m]: more
 #: than a junction lane and a car.
 JUNCTION_REACH_M = 50.0
+#: Two cars side by side on one lane keep at least this much between them [m] (SUMO's
+#: default `minGapLat`).
+SIDE_BY_SIDE_M = 0.6
 #: The sidestep clears the corridor by this much [m] and keeps the body this far
 #: inside the lane's edges [m]; the outline is sampled every `OUTLINE_STEP_M`.
 SIDESTEP_EXTRA_M, LANE_EDGE_CLEARANCE_M, OUTLINE_STEP_M = 0.05, 0.1, 0.25
@@ -162,8 +165,14 @@ class ObstaclesAhead:
         ahead, whose, standing = moving_footprints(
             world, ctx.sensed_world, self._lanes, fronts, reach
         )
-        owners = np.concatenate([np.arange(len(rects)), whose])
-        every = np.concatenate([rects, ahead]) if len(ahead) else rects
+        cars, lane_rows, to_end, beside = self._entering(ctx, members, table)
+        entering, entrants, entrant_stands = entering_footprints(
+            world, ctx.sensed_world, self._lanes, cars, lane_rows, to_end
+        )
+        seen_by = np.concatenate([np.full(len(rects) + len(ahead), -1), beside[entrants]])
+        owners = np.concatenate([np.arange(len(rects)), whose, cars[entrants]])
+        every = np.concatenate([rects, ahead, entering])
+        standing = np.concatenate([standing, entrant_stands])
         args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
         count = corridor_intrusions(*args, *self._outputs)
         if count > len(self._outputs[0]):
@@ -177,6 +186,8 @@ class ObstaclesAhead:
             m = members[j]
             if m.obstacle_ahead is not None:
                 continue
+            if seen_by[rect[k]] not in (-1, j):
+                continue  # a car entering the junction beside another member
             i = int(owners[rect[k]])
             later = int(rect[k]) - len(rects)  # >= 0: where a moving car will be
             will_stop = later >= 0 and bool(standing[later])
@@ -217,6 +228,78 @@ class ObstaclesAhead:
                     float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
                 )  # fmt: skip
 
+    def _entering(
+        self, ctx: StepContext, members: list[Member], table: FloatArray
+    ) -> tuple[IntArray, IntArray, FloatArray, IntArray]:
+        """The cars about to enter a junction from a member's lane beside or ahead of it
+        (`entering_footprints`): world rows, lane rows (the lane leading to the junction
+        lane each enters), distances to the lane's end [m], and the member (index in
+        `members`) each is beside.
+
+        SUMO orders the cars on different approaches by the junction's right of way,
+        but not two cars side by side on one wide lane (sublane model) that go on into
+        the same narrow junction lane, or cross each other's paths in it. Race circuit,
+        seed 44: a car on a 5 m lane 3.9 m right of its centre and a platoon car 0.5 m
+        right of it entered a 3.2 m junction lane together; the platoon car stood in
+        it behind the other, which waited at the junction's exit to move over into the
+        side road, with the platoon car within the room it needed (a gridlock to the
+        end). A moving car on the member's lane beside it (level with some of its body;
+        a member only when its front is ahead: one of two goes first), that will be past
+        the lane's end within `AHEAD_S` is seen there, on the junction lane it enters;
+        the member waits at the line for it, unless both go on into one junction lane
+        wide enough for the two side by side (`SIDE_BY_SIDE_M` between them). A car
+        wholly ahead is seen where it is."""
+        world, backend = ctx.world, ctx.backend
+        assert self._lanes is not None
+        members_ids = {m.id for m in ctx.fleet}
+        occupants: dict[str, list[tuple[str, float, float, float]]] = {}
+        found: list[tuple[int, int, float, int]] = []
+        for j, m in enumerate(members):
+            link = m.link_ahead
+            lane = world.lane_ids[world.index[m.id]]
+            if link is None or not lane or lane[0] == ":" or link.distance_m > table[j, 3]:
+                continue
+            if lane not in occupants:
+                occupants[lane] = backend.lane_occupants(lane)
+            mine = next((o[1] for o in occupants[lane] if o[0] == m.id), None)
+            if mine is None:
+                continue
+            back = mine - m.platoon.config.vehicle.length_m
+            mine_next: str | None = None
+            for other, front, speed, length in occupants[lane]:
+                to_end = link.distance_m - (front - mine)
+                if (
+                    other == m.id
+                    or speed < STANDING_MPS
+                    or front <= (mine if other in members_ids else back)
+                    or front - length >= mine  # wholly ahead: in line, seen where it is
+                    or not 0.0 <= to_end < speed * AHEAD_S
+                    or other not in world.index
+                ):
+                    continue
+                after = backend.next_junction_lane(other)
+                if not after:
+                    continue
+                if mine_next is None:
+                    mine_next = backend.next_junction_lane(m.id)
+                i = world.index[other]
+                both = m.platoon.config.vehicle.width_m + world.width_m[i] + SIDE_BY_SIDE_M
+                if after == mine_next and backend.lane_width(after) >= both:
+                    continue  # room for both side by side
+                row = self._lanes.index(lane, after)
+                if row >= 0 and self._lanes.successor(row) >= 0:
+                    found.append((i, row, to_end, j))
+        if not found:
+            return (
+                np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0),
+                np.empty(0, dtype=np.int64),
+            )  # fmt: skip
+        cars, rows, distances, beside = zip(*found, strict=True)
+        return (
+            np.array(cars, dtype=np.int64), np.array(rows, dtype=np.int64), np.array(distances),
+            np.array(beside, dtype=np.int64),
+        )  # fmt: skip
+
 
 class JunctionLanes:
     """The shapes of the junction lanes cars were seen on, each with the lanes it leads
@@ -230,9 +313,12 @@ class JunctionLanes:
         self._starts, self._lengths, self._successors = [0], list[float](), list[int]()
         self._stacked: tuple[FloatArray, IntArray, FloatArray, IntArray] | None = None
 
-    def index(self, lane_id: str) -> int:
-        """The lane's row (-1: unknown to the network or without a shape)."""
-        known = self._index.get(lane_id)
+    def index(self, lane_id: str, then: str | None = None) -> int:
+        """The lane's row (-1: unknown to the network or without a shape); leading to
+        the junction lane it has (a junction's lane) or to `then` (a road's lane, with
+        a row for each lane it leads to)."""
+        key = lane_id if then is None else f"{lane_id} {then}"
+        known = self._index.get(key)
         if known is not None:
             return known
         try:
@@ -240,9 +326,9 @@ class JunctionLanes:
         except (KeyError, ValueError):  # sumolib's answers to an unknown lane id
             shape = np.empty((0, 2))
         if len(shape) < 2:
-            self._index[lane_id] = -1
+            self._index[key] = -1
             return -1
-        k = self._index[lane_id] = len(self._lengths)
+        k = self._index[key] = len(self._lengths)
         start, end = self._starts[-1], self._starts[-1] + len(shape)
         while end > len(self._points):
             self._points = np.concatenate([self._points, np.empty_like(self._points)])
@@ -252,10 +338,14 @@ class JunctionLanes:
         self._lengths.append(float(np.sqrt(steps).sum()))  # as the kernel walks it
         self._successors.append(-1)
         self._stacked = None
-        after = self._network.junction_successor(lane_id)
-        if after is not None:
+        after = self._network.junction_successor(lane_id) if then is None else then
+        if after:
             self._successors[k] = self.index(after)
         return k
+
+    def successor(self, row: int) -> int:
+        """The row of the lane a row's lane leads to (-1: none)."""
+        return self._successors[row]
 
     def stacked(self) -> tuple[FloatArray, IntArray, FloatArray, IntArray]:
         """(points, starts, lengths, successors) for `kernels.lanes`."""
@@ -301,27 +391,73 @@ def moving_footprints(
     inside, rows = inside[rows >= 0], rows[rows >= 0]
     if not len(inside):
         return none
-    speed = world.speed_mps[inside]
-    decel = np.zeros(len(inside))
+    ahead, stands = _advance(world, before, inside)
+    return _bodies_ahead(world, lanes, inside, rows, ahead), *_owners(inside, stands)
+
+
+def entering_footprints(
+    world: WorldSnapshot,
+    before: WorldSnapshot | None,
+    lanes: JunctionLanes,
+    cars: IntArray,
+    rows: IntArray,
+    to_end_m: FloatArray,
+) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
+    """As `moving_footprints`, for cars still on a road's lane (`to_end_m` before its
+    end, on lane row `rows`, which leads to the junction lane each enters): only where
+    they will be past the lane's end, on the junction's lane. Before that they are
+    where they are now, beside it or not. Returns the footprints, which of `cars` each
+    is, and whether it will stand there."""
+    if not len(cars):
+        return np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_)
+    ahead, stands = _advance(world, before, cars)
+    rects = _bodies_ahead(world, lanes, cars, rows, ahead)
+    which, standing = _owners(np.arange(len(cars)), stands)
+    past = ahead.ravel() > np.repeat(to_end_m, len(AHEAD_FRACTIONS))
+    return rects[past], which[past], standing[past]
+
+
+def _advance(
+    world: WorldSnapshot, before: WorldSnapshot | None, cars: IntArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """How far each car drives by each of `AHEAD_FRACTIONS` of `AHEAD_S` (rows),
+    keeping the deceleration it showed since `before` (or its speed), and whether it
+    stands by then."""
+    speed = world.speed_mps[cars]
+    decel = np.zeros(len(cars))
     if before is not None and world.time_s > before.time_s:
-        earlier = [before.index.get(world.ids[i], -1) for i in inside.tolist()]
-        seen = np.array(earlier) >= 0
-        was = before.speed_mps[np.array(earlier)[seen]]
+        earlier = np.array(
+            [before.index.get(world.ids[i], -1) for i in cars.tolist()], dtype=np.int64
+        )
+        seen = earlier >= 0
+        was = before.speed_mps[earlier[seen]]
         decel[seen] = (was - speed[seen]) / (world.time_s - before.time_s)
     decel = np.maximum(decel, 0.0)[:, None]
     t = AHEAD_S * np.asarray(AHEAD_FRACTIONS)[None, :]
     v = speed[:, None]
     stands = v <= decel * t  # stopped by then
     ahead = np.where(stands, v * v / (2.0 * np.maximum(decel, 1e-9)), v * t - 0.5 * decel * t * t)
-    k = len(AHEAD_FRACTIONS)
-    cars = np.repeat(inside, k)
-    length = world.length_m[cars]
+    return ahead, stands
+
+
+def _bodies_ahead(
+    world: WorldSnapshot, lanes: JunctionLanes, cars: IntArray, rows: IntArray, ahead: FloatArray
+) -> FloatArray:
+    """The bodies (rows of rectangles) of `cars` (world rows, on lane rows `rows`) moved
+    along their lanes by `ahead` (a row per car), nearest first per car."""
+    k = ahead.shape[1]
+    every = np.repeat(cars, k)
+    length = world.length_m[every]
     poses = moved_along_lanes(
-        *lanes.stacked(), np.repeat(rows, k), world.front_x_m[cars], world.front_y_m[cars],
+        *lanes.stacked(), np.repeat(rows, k), world.front_x_m[every], world.front_y_m[every],
         ahead.ravel(), length,
     )  # fmt: skip
-    rects = np.column_stack([poses, length, world.width_m[cars]])
-    return rects, cars, stands.ravel()
+    return np.column_stack([poses, length, world.width_m[every]])
+
+
+def _owners(cars: IntArray, stands: NDArray[np.bool_]) -> tuple[IntArray, NDArray[np.bool_]]:
+    """Whose each row of `_bodies_ahead` is, and whether the car stands there."""
+    return np.repeat(cars, stands.shape[1]), stands.ravel()
 
 
 def crosses_before_arrival(

@@ -490,6 +490,14 @@ class SumoBackend:
             for vid in self._api.lane.getLastStepVehicleIDs(lane_id)
         ]
 
+    def next_junction_lane(self, vehicle_id: str) -> str:
+        """The lane the vehicle enters at the end of its current lane (the link's
+        internal lane, or the next lane where the link has none); "" at its route's end."""
+        links = self._api.vehicle.getNextLinks(vehicle_id)
+        if not links:
+            return ""
+        return str(links[0][4] or links[0][0])
+
     def lane_shape(self, lane_id: str) -> NDArray[np.float64]:
         """The lane's centre-line, (n, 2) network coordinates."""
         return np.asarray(self._api.lane.getShape(lane_id), dtype=np.float64).reshape(-1, 2)
