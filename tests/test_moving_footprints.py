@@ -1,5 +1,6 @@
-"""Where cars moving inside a junction will be (`loop.obstacles.moving_footprints`),
-against shapely's interpolation along SUMO's lane shapes (read with sumolib)."""
+"""Where cars moving inside a junction will be (`loop.obstacles.moving_footprints`), and
+cars about to enter one (`entering_footprints`), against shapely's interpolation along
+SUMO's lane shapes (read with sumolib)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from platoon_sumo.loop.obstacles import (
     AHEAD_FRACTIONS,
     AHEAD_S,
     JunctionLanes,
+    entering_footprints,
     moving_footprints,
 )
 from platoon_sumo.sumo.network import Network
@@ -114,3 +116,30 @@ def test_only_moving_cars_inside_a_junction_near_a_member_are_moved():
     )  # fmt: skip
     far = turning + 200.0
     assert len(moving_footprints(now, None, LANES, far, 10.0)[0]) == 0
+
+
+#: The junction lanes the road's lane leads to (its links' internal lanes).
+ROAD_ENTRIES = sorted(c.getViaLaneID() for c in SUMOLIB.getLane(ROAD).getOutgoing())
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    entry=st.sampled_from(ROAD_ENTRIES),
+    to_end=st.floats(0.0, 15.0),
+    speed=st.floats(0.3, 15.0),
+)
+def test_a_car_entering_a_junction_is_seen_only_past_its_lanes_end(entry, to_end, speed):
+    road = lane_line(ROAD)
+    s = road.length - to_end
+    line = LineString(list(road.coords) + list(chain_line(entry).coords)[1:])
+    now = snapshot(10.0, [("h", ROAD, s, speed)])
+    row = LANES.index(ROAD, entry)
+    rects, which, stands = entering_footprints(
+        now, None, LANES, np.array([0]), np.array([row]), np.array([to_end])
+    )
+    past = [f for f in AHEAD_FRACTIONS if speed * f * AHEAD_S > to_end]
+    assert which.tolist() == [0] * len(past)
+    assert not stands.any()  # without an earlier world: at its speed
+    for rect, fraction_s in zip(rects, past, strict=True):
+        front = line.interpolate(min(s + speed * fraction_s * AHEAD_S, line.length))
+        assert front_of(rect) == pytest.approx([front.x, front.y], abs=1e-6)

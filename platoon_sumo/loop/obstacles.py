@@ -165,11 +165,12 @@ class ObstaclesAhead:
         ahead, whose, standing = moving_footprints(
             world, ctx.sensed_world, self._lanes, fronts, reach
         )
-        cars, lane_rows, to_end, beside = self._entering(ctx, members, table)
+        cars, lane_rows, to_end, beside, stops = self._entering(ctx, members, table)
         entering, entrants, entrant_stands = entering_footprints(
             world, ctx.sensed_world, self._lanes, cars, lane_rows, to_end
         )
         seen_by = np.concatenate([np.full(len(rects) + len(ahead), -1), beside[entrants]])
+        stop_at = np.concatenate([np.full(len(rects) + len(ahead), np.inf), stops[entrants]])
         owners = np.concatenate([np.arange(len(rects)), whose, cars[entrants]])
         every = np.concatenate([rects, ahead, entering])
         standing = np.concatenate([standing, entrant_stands])
@@ -181,6 +182,8 @@ class ObstaclesAhead:
         if not count:
             return
         who, rect, gap, along = (a[:count] for a in self._outputs)
+        entry = seen_by[rect] == who  # waited for at the line, or before it (`_entering`)
+        gap = np.where(entry, np.minimum(gap, stop_at[rect]), gap)
         for k in np.lexsort((rect, gap, who)).tolist():  # per member, nearest first
             j = int(who[k])
             m = members[j]
@@ -191,6 +194,7 @@ class ObstaclesAhead:
             i = int(owners[rect[k]])
             later = int(rect[k]) - len(rects)  # >= 0: where a moving car will be
             will_stop = later >= 0 and bool(standing[later])
+            will_stop |= bool(entry[k])
             other = world.ids[i]
             leader = m.vehicle_ahead
             if leader is not None and leader.vehicle_id == other:
@@ -230,11 +234,11 @@ class ObstaclesAhead:
 
     def _entering(
         self, ctx: StepContext, members: list[Member], table: FloatArray
-    ) -> tuple[IntArray, IntArray, FloatArray, IntArray]:
+    ) -> tuple[IntArray, IntArray, FloatArray, IntArray, FloatArray]:
         """The cars about to enter a junction from a member's lane beside or ahead of it
         (`entering_footprints`): world rows, lane rows (the lane leading to the junction
-        lane each enters), distances to the lane's end [m], and the member (index in
-        `members`) each is beside.
+        lane each enters), distances to the lane's end [m], the member (index in
+        `members`) each is beside, and where that member stops for it [m ahead].
 
         SUMO orders the cars on different approaches by the junction's right of way,
         but not two cars side by side on one wide lane (sublane model) that go on into
@@ -248,12 +252,19 @@ class ObstaclesAhead:
         the lane's end within `AHEAD_S` is seen there, on the junction lane it enters;
         the member waits at the line for it, unless both go on into one junction lane
         wide enough for the two side by side (`SIDE_BY_SIDE_M` between them). A car
-        wholly ahead is seen where it is."""
+        wholly ahead is seen where it is.
+
+        The member stops where it leaves its minGap behind the car's back with the car
+        at the end of the junction lane (where SUMO holds a car that must move over
+        into the next lane). Where it cannot (a junction lane shorter than the car plus
+        the member's minGap and the member's distance to the line), waiting would block
+        that move, and the member goes first (a 3 m junction lane in
+        `test_side_by_side_entry.py`)."""
         world, backend = ctx.world, ctx.backend
         assert self._lanes is not None
         members_ids = {m.id for m in ctx.fleet}
         occupants: dict[str, list[tuple[str, float, float, float]]] = {}
-        found: list[tuple[int, int, float, int]] = []
+        found: list[tuple[int, int, float, int, float]] = []
         for j, m in enumerate(members):
             link = m.link_ahead
             lane = world.lane_ids[world.index[m.id]]
@@ -287,17 +298,21 @@ class ObstaclesAhead:
                 if after == mine_next and backend.lane_width(after) >= both:
                     continue  # room for both side by side
                 row = self._lanes.index(lane, after)
-                if row >= 0 and self._lanes.successor(row) >= 0:
-                    found.append((i, row, to_end, j))
+                if row < 0 or self._lanes.successor(row) < 0:
+                    continue
+                inside = self._lanes.length(self._lanes.successor(row)) - length
+                stop = link.distance_m + inside - m.platoon.config.vehicle.min_gap_m
+                if stop >= 0.0:
+                    found.append((i, row, to_end, j, stop))
         if not found:
             return (
                 np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0),
-                np.empty(0, dtype=np.int64),
+                np.empty(0, dtype=np.int64), np.empty(0),
             )  # fmt: skip
-        cars, rows, distances, beside = zip(*found, strict=True)
+        cars, rows, distances, beside, stops = zip(*found, strict=True)
         return (
             np.array(cars, dtype=np.int64), np.array(rows, dtype=np.int64), np.array(distances),
-            np.array(beside, dtype=np.int64),
+            np.array(beside, dtype=np.int64), np.array(stops),
         )  # fmt: skip
 
 
@@ -346,6 +361,10 @@ class JunctionLanes:
     def successor(self, row: int) -> int:
         """The row of the lane a row's lane leads to (-1: none)."""
         return self._successors[row]
+
+    def length(self, row: int) -> float:
+        """A row's lane's length along its shape [m]."""
+        return self._lengths[row]
 
     def stacked(self) -> tuple[FloatArray, IntArray, FloatArray, IntArray]:
         """(points, starts, lengths, successors) for `kernels.lanes`."""
