@@ -264,11 +264,30 @@ class ObstaclesAhead:
         assert self._lanes is not None
         members_ids = {m.id for m in ctx.fleet}
         occupants: dict[str, list[tuple[str, float, float, float]]] = {}
+        on_lane: dict[str, list[int]] | None = None
         found: list[tuple[int, int, float, int, float]] = []
         for j, m in enumerate(members):
             link = m.link_ahead
-            lane = world.lane_ids[world.index[m.id]]
+            me = world.index[m.id]
+            lane = world.lane_ids[me]
             if link is None or not lane or lane[0] == ":" or link.distance_m > table[j, 3]:
+                continue
+            if on_lane is None:
+                on_lane = {}
+                for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
+                    on_lane.setdefault(world.lane_ids[i], []).append(i)
+            # a car beside has its front within a car's length along the lane, so
+            # within that and the lane's width in the plane: SUMO is asked only then
+            reach = backend.lane_width(lane) + m.platoon.config.vehicle.length_m
+            if not any(
+                i != me
+                and math.hypot(
+                    world.front_x_m[i] - world.front_x_m[me],
+                    world.front_y_m[i] - world.front_y_m[me],
+                )
+                <= reach + world.length_m[i]
+                for i in on_lane.get(lane, ())
+            ):
                 continue
             if lane not in occupants:
                 occupants[lane] = backend.lane_occupants(lane)
