@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 import sumolib
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from shapely.geometry import LineString
 
@@ -18,6 +18,7 @@ from platoon_sumo.loop.obstacles import (
     AHEAD_S,
     JunctionLanes,
     entering_footprints,
+    entry_stop_m,
     moving_footprints,
 )
 from platoon_sumo.sumo.network import Network
@@ -129,17 +130,45 @@ ROAD_ENTRIES = sorted(c.getViaLaneID() for c in SUMOLIB.getLane(ROAD).getOutgoin
     speed=st.floats(0.3, 15.0),
 )
 def test_a_car_entering_a_junction_is_seen_only_past_its_lanes_end(entry, to_end, speed):
+    # the shape's length and a projection on it: a car exactly at the end is either
+    assume(all(abs(speed * f * AHEAD_S - to_end) > 1e-6 for f in AHEAD_FRACTIONS))
     road = lane_line(ROAD)
     s = road.length - to_end
     line = LineString(list(road.coords) + list(chain_line(entry).coords)[1:])
     now = snapshot(10.0, [("h", ROAD, s, speed)])
     row = LANES.index(ROAD, entry)
-    rects, which, stands = entering_footprints(
-        now, None, LANES, np.array([0]), np.array([row]), np.array([to_end])
-    )
+    rects, which, stands = entering_footprints(now, None, LANES, np.array([0]), np.array([row]))
     past = [f for f in AHEAD_FRACTIONS if speed * f * AHEAD_S > to_end]
     assert which.tolist() == [0] * len(past)
     assert not stands.any()  # without an earlier world: at its speed
     for rect, fraction_s in zip(rects, past, strict=True):
         front = line.interpolate(min(s + speed * fraction_s * AHEAD_S, line.length))
         assert front_of(rect) == pytest.approx([front.x, front.y], abs=1e-6)
+
+
+def test_a_junction_lane_is_measured_to_the_road_it_leads_to():
+    """A left turn made of two junction lanes (to its waiting point, then curved)."""
+    row = LANES.index(LEFT_TURN_START)
+    both = SUMOLIB.getLane(LEFT_TURN_START).getLength() + SUMOLIB.getLane(LEFT_TURN).getLength()
+    assert LANES.length_to_exit(row) == pytest.approx(both, rel=1e-3)
+    assert LANES.length_to_exit(LANES.index(ROAD)) == 0.0
+
+
+@given(
+    to_line=st.floats(0.0, 50.0),
+    junction=st.floats(1.0, 40.0),
+    other=st.floats(2.0, 18.0),
+    min_gap=st.floats(0.5, 3.0),
+)
+def test_a_member_waits_at_the_line_at_the_latest_or_goes_first(to_line, junction, other, min_gap):
+    """Into one junction lane: where the other car's back, standing at the lane's end,
+    leaves the member its minGap, if that is ahead of the member; into another: at the
+    line."""
+    back = to_line + junction - other  # the other's back, standing at the end
+    stop = entry_stop_m(to_line, junction, other, min_gap, same=True)
+    if back - min_gap < 0.0:
+        assert stop is None
+    else:
+        assert stop == pytest.approx(min(back - min_gap, to_line))
+        assert stop <= to_line
+    assert entry_stop_m(to_line, junction, other, min_gap, same=False) == to_line

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, empty_outputs
-from platoon_sumo.kernels.lanes import moved_along_lanes
+from platoon_sumo.kernels.lanes import lane_position, moved_along_lanes
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.path import RoutePath
@@ -82,6 +82,8 @@ class ObstaclesAhead:
         self._lanes: JunctionLanes | None = None
         self._holding: dict[str, str] = {}
         """Members held behind a car SUMO is to move sideways, and that car."""
+        self._yielding: dict[str, str] = {}
+        """Members waiting for a car beside them to enter a junction, and that car."""
 
     def _constants(self, m: Member) -> tuple[float, float, float, float, float, float]:
         """(path index, 1 / (2 comfortable deceleration), spacing, stride, half width,
@@ -165,9 +167,9 @@ class ObstaclesAhead:
         ahead, whose, standing = moving_footprints(
             world, ctx.sensed_world, self._lanes, fronts, reach
         )
-        cars, lane_rows, to_end, beside, stops = self._entering(ctx, members, table)
+        cars, lane_rows, beside, stops = self._entering(ctx, members, table)
         entering, entrants, entrant_stands = entering_footprints(
-            world, ctx.sensed_world, self._lanes, cars, lane_rows, to_end
+            world, ctx.sensed_world, self._lanes, cars, lane_rows
         )
         seen_by = np.concatenate([np.full(len(rects) + len(ahead), -1), beside[entrants]])
         stop_at = np.concatenate([np.full(len(rects) + len(ahead), np.inf), stops[entrants]])
@@ -234,11 +236,11 @@ class ObstaclesAhead:
 
     def _entering(
         self, ctx: StepContext, members: list[Member], table: FloatArray
-    ) -> tuple[IntArray, IntArray, FloatArray, IntArray, FloatArray]:
-        """The cars about to enter a junction from a member's lane beside or ahead of it
+    ) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+        """The cars about to enter a junction from a member's lane beside it
         (`entering_footprints`): world rows, lane rows (the lane leading to the junction
-        lane each enters), distances to the lane's end [m], the member (index in
-        `members`) each is beside, and where that member stops for it [m ahead].
+        lane each enters), the member (index in `members`) each is beside, and where
+        that member stops for it [m ahead] (`entry_stop_m`).
 
         SUMO orders the cars on different approaches by the junction's right of way,
         but not two cars side by side on one wide lane (sublane model) that go on into
@@ -250,22 +252,23 @@ class ObstaclesAhead:
         end). A moving car on the member's lane beside it (level with some of its body;
         a member only when its front is ahead: one of two goes first), that will be past
         the lane's end within `AHEAD_S` is seen there, on the junction lane it enters;
-        the member waits at the line for it, unless both go on into one junction lane
-        wide enough for the two side by side (`SIDE_BY_SIDE_M` between them). A car
-        wholly ahead is seen where it is.
-
-        The member stops where it leaves its minGap behind the car's back with the car
-        at the end of the junction lane (where SUMO holds a car that must move over
-        into the next lane). Where it cannot (a junction lane shorter than the car plus
-        the member's minGap and the member's distance to the line), waiting would block
-        that move, and the member goes first (a 3 m junction lane in
-        `test_side_by_side_entry.py`)."""
+        the member waits for it (at the line at the latest), unless both go on into one
+        junction lane wide enough for the two side by side (`SIDE_BY_SIDE_M` between
+        them). A car wholly ahead is seen where it is. Into one lane, the member stops
+        where it leaves its minGap behind the car's back once the car stands at the
+        junction lane's end (SUMO holds a car there that must move over into the next
+        lane); where that place is behind it, waiting would block that move, and the
+        member goes first (a 3 m junction lane in `test_side_by_side_entry.py`); so does
+        a member that cannot stop comfortably where it would wait when it first sees the
+        car."""
         world, backend = ctx.world, ctx.backend
         assert self._lanes is not None
         members_ids = {m.id for m in ctx.fleet}
         occupants: dict[str, list[tuple[str, float, float, float]]] = {}
         on_lane: dict[str, list[int]] | None = None
-        found: list[tuple[int, int, float, int, float]] = []
+        found: list[tuple[int, int, int, float]] = []
+        held, self._yielding = self._yielding, {}
+        speeds = ctx.fleet.kin[ctx.fleet.rows(members), SPEED].tolist()
         for j, m in enumerate(members):
             link = m.link_ahead
             me = world.index[m.id]
@@ -319,18 +322,24 @@ class ObstaclesAhead:
                 row = self._lanes.index(lane, after)
                 if row < 0 or self._lanes.successor(row) < 0:
                     continue
-                inside = self._lanes.length(self._lanes.successor(row)) - length
-                stop = link.distance_m + inside - m.platoon.config.vehicle.min_gap_m
-                if stop >= 0.0:
-                    found.append((i, row, to_end, j, stop))
+                stop = entry_stop_m(
+                    link.distance_m, self._lanes.length_to_exit(self._lanes.successor(row)),
+                    length, m.platoon.config.vehicle.min_gap_m, after == mine_next,
+                )  # fmt: skip
+                if stop is None:
+                    continue
+                # held only if it can stop there comfortably when it first sees the car
+                # (then until the car is in); one too fast for that goes first
+                if held.get(m.id) != other and speeds[j] ** 2 * self._constants(m)[1] > stop:
+                    continue
+                self._yielding[m.id] = other
+                found.append((i, row, j, stop))
         if not found:
-            return (
-                np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0),
-                np.empty(0, dtype=np.int64), np.empty(0),
-            )  # fmt: skip
-        cars, rows, distances, beside, stops = zip(*found, strict=True)
+            empty = np.empty(0, dtype=np.int64)
+            return empty, empty, empty, np.empty(0)
+        cars, rows, beside, stops = zip(*found, strict=True)
         return (
-            np.array(cars, dtype=np.int64), np.array(rows, dtype=np.int64), np.array(distances),
+            np.array(cars, dtype=np.int64), np.array(rows, dtype=np.int64),
             np.array(beside, dtype=np.int64), np.array(stops),
         )  # fmt: skip
 
@@ -345,6 +354,7 @@ class JunctionLanes:
         self._index: dict[str, int] = {}
         self._points = np.empty((1024, 2))
         self._starts, self._lengths, self._successors = [0], list[float](), list[int]()
+        self._internal: list[bool] = []
         self._stacked: tuple[FloatArray, IntArray, FloatArray, IntArray] | None = None
 
     def index(self, lane_id: str, then: str | None = None) -> int:
@@ -371,6 +381,7 @@ class JunctionLanes:
         steps = np.maximum((np.diff(shape, axis=0) ** 2).sum(axis=1), 1e-12)
         self._lengths.append(float(np.sqrt(steps).sum()))  # as the kernel walks it
         self._successors.append(-1)
+        self._internal.append(lane_id.startswith(":"))
         self._stacked = None
         after = self._network.junction_successor(lane_id) if then is None else then
         if after:
@@ -381,9 +392,14 @@ class JunctionLanes:
         """The row of the lane a row's lane leads to (-1: none)."""
         return self._successors[row]
 
-    def length(self, row: int) -> float:
-        """A row's lane's length along its shape [m]."""
-        return self._lengths[row]
+    def length_to_exit(self, row: int) -> float:
+        """Along a junction lane's shape and the junction lanes it leads to, to the
+        road [m]."""
+        total = 0.0
+        while row >= 0 and self._internal[row]:
+            total += self._lengths[row]
+            row = self._successors[row]
+        return total
 
     def stacked(self) -> tuple[FloatArray, IntArray, FloatArray, IntArray]:
         """(points, starts, lengths, successors) for `kernels.lanes`."""
@@ -439,20 +455,41 @@ def entering_footprints(
     lanes: JunctionLanes,
     cars: IntArray,
     rows: IntArray,
-    to_end_m: FloatArray,
 ) -> tuple[FloatArray, IntArray, NDArray[np.bool_]]:
-    """As `moving_footprints`, for cars still on a road's lane (`to_end_m` before its
-    end, on lane row `rows`, which leads to the junction lane each enters): only where
-    they will be past the lane's end, on the junction's lane. Before that they are
-    where they are now, beside it or not. Returns the footprints, which of `cars` each
-    is, and whether it will stand there."""
+    """As `moving_footprints`, for cars still on a road's lane (on lane row `rows`,
+    which leads to the junction lane each enters): only where they will be past the
+    lane's end (along its shape, as they are moved), on the junction's lane. Before
+    that they are where they are now, beside it or not. Returns the footprints, which
+    of `cars` each is, and whether it will stand there."""
     if not len(cars):
         return np.empty((0, 5)), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.bool_)
     ahead, stands = _advance(world, before, cars)
     rects = _bodies_ahead(world, lanes, cars, rows, ahead)
     which, standing = _owners(np.arange(len(cars)), stands)
-    past = ahead.ravel() > np.repeat(to_end_m, len(AHEAD_FRACTIONS))
+    points, starts, lengths, _ = lanes.stacked()
+    to_end = np.array([
+        lengths[r] - lane_position(points, starts[r], starts[r + 1], world.front_x_m[i],
+                                   world.front_y_m[i])
+        for i, r in zip(cars.tolist(), rows.tolist(), strict=True)
+    ])  # fmt: skip
+    past = ahead.ravel() > np.repeat(to_end, len(AHEAD_FRACTIONS))
     return rects[past], which[past], standing[past]
+
+
+def entry_stop_m(
+    to_line_m: float, junction_m: float, other_length_m: float, min_gap_m: float, same: bool
+) -> float | None:
+    """Where [m ahead] a member waits for a car beside it entering a junction lane
+    `junction_m` long (to the road it leads to), the member `to_line_m` before the line:
+    at the line, or before it where it leaves `min_gap_m` behind the car's back once the
+    car stands at the junction lane's end (SUMO holds a car there that must move over
+    into the next lane) when both go on into that one lane (`same`). None where that
+    place is behind the member: waiting there would block that move, the member goes
+    first."""
+    if not same:
+        return to_line_m
+    stop = to_line_m + junction_m - other_length_m - min_gap_m
+    return None if stop < 0.0 else min(stop, to_line_m)
 
 
 def _advance(
