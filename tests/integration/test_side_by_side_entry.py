@@ -88,6 +88,7 @@ def test_the_platoon_car_lets_the_car_beside_it_into_a_left_turn_first(tmp_path,
     waited = traj[(traj["time_s"] > GREEN_S + 1.0) & traj["lane_id"].str.startswith("WJ")]
     assert len(waited) > 20  # it stood at the line after green while the car went in
     assert (waited["supervisor"] == "emergency").any()
+    assert traj[traj["lane_id"].str.startswith(":")]["speed_mps"].min() > 1.0  # not in it
 
 
 def test_without_waiting_the_two_touch_in_the_turn(tmp_path, write_scenario, monkeypatch):
@@ -107,7 +108,8 @@ def test_through_a_short_junction_lane_the_platoon_car_goes_first(
     """Its 3 m junction lane leaves the SUMO car's back beside the line when it stands
     at the exit to move over: a platoon car waiting there would block that move for
     good, so it does not wait (whether the other car stands beside it or drives up)."""
-    summary, _ = drive(tmp_path, write_scenario, turn=False, depart_s=depart_s)
+    summary, traj = drive(tmp_path, write_scenario, turn=False, depart_s=depart_s)
     assert summary["collisions"] == 0
     assert summary["all_vehicles"] == {"departed": 2, "arrived": 2}
     assert summary["gridlocks"] == 0
+    assert traj[traj["lane_id"].str.startswith(":")]["speed_mps"].min() > 1.0
