@@ -148,7 +148,8 @@ class ObstaclesAhead:
         speed = np.maximum(ctx.fleet.kin[rows, SPEED], 0.0)
         constants = np.array([self._constants(m) for m in members])
         table[:, 0] = constants[:, 0]
-        table[:, 3] = speed * speed * constants[:, 1] + LOOK_TIME_S * speed + LOOK_EXTRA_M
+        comfort_stop = speed * speed * constants[:, 1]
+        table[:, 3] = comfort_stop + LOOK_TIME_S * speed + LOOK_EXTRA_M
         table[:, 4:] = constants[:, 2:]
         if self._stacked is None:
             starts = np.zeros(len(self._paths) + 1, dtype=np.int64)
@@ -167,7 +168,7 @@ class ObstaclesAhead:
         ahead, whose, standing = moving_footprints(
             world, ctx.sensed_world, self._lanes, fronts, reach
         )
-        cars, lane_rows, beside, stops = self._entering(ctx, members, table)
+        cars, lane_rows, beside, stops = self._entering(ctx, members, table, comfort_stop)
         entering, entrants, entrant_stands = entering_footprints(
             world, ctx.sensed_world, self._lanes, cars, lane_rows
         )
@@ -235,12 +236,13 @@ class ObstaclesAhead:
                 )  # fmt: skip
 
     def _entering(
-        self, ctx: StepContext, members: list[Member], table: FloatArray
+        self, ctx: StepContext, members: list[Member], table: FloatArray, stop_m: FloatArray
     ) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
         """The cars about to enter a junction from a member's lane beside it
         (`entering_footprints`): world rows, lane rows (the lane leading to the junction
         lane each enters), the member (index in `members`) each is beside, and where
-        that member stops for it [m ahead] (`entry_stop_m`).
+        that member stops for it [m ahead] (`entry_stop_m`). `table` is the members'
+        corridors, `stop_m` their comfortable stopping distances.
 
         SUMO orders the cars on different approaches by the junction's right of way,
         but not two cars side by side on one wide lane (sublane model) that go on into
@@ -263,19 +265,19 @@ class ObstaclesAhead:
         car."""
         world, backend = ctx.world, ctx.backend
         assert self._lanes is not None
-        members_ids = {m.id for m in ctx.fleet}
+        members_ids: set[str] = set()
         occupants: dict[str, list[tuple[str, float, float, float]]] = {}
         on_lane: dict[str, list[int]] | None = None
         found: list[tuple[int, int, int, float]] = []
         held, self._yielding = self._yielding, {}
-        speeds = ctx.fleet.kin[ctx.fleet.rows(members), SPEED].tolist()
         for j, m in enumerate(members):
             link = m.link_ahead
             me = world.index[m.id]
             lane = world.lane_ids[me]
             if link is None or not lane or lane[0] == ":" or link.distance_m > table[j, 3]:
                 continue
-            if on_lane is None:
+            if on_lane is None:  # built once a member is near its lane's end
+                members_ids = {m.id for m in ctx.fleet}
                 on_lane = {}
                 for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
                     on_lane.setdefault(world.lane_ids[i], []).append(i)
@@ -330,7 +332,7 @@ class ObstaclesAhead:
                     continue
                 # held only if it can stop there comfortably when it first sees the car
                 # (then until the car is in); one too fast for that goes first
-                if held.get(m.id) != other and speeds[j] ** 2 * self._constants(m)[1] > stop:
+                if held.get(m.id) != other and stop_m[j] > stop:
                     continue
                 self._yielding[m.id] = other
                 found.append((i, row, j, stop))

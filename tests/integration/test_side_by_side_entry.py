@@ -92,7 +92,7 @@ def test_the_platoon_car_lets_the_car_beside_it_into_a_left_turn_first(tmp_path,
 
 
 def test_without_waiting_the_two_touch_in_the_turn(tmp_path, write_scenario, monkeypatch):
-    def nobody(self, ctx, members, table):
+    def nobody(self, ctx, members, table, stop_m):
         empty = np.empty(0, dtype=np.int64)
         return empty, empty, empty, np.empty(0)
 
