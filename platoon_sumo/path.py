@@ -240,6 +240,18 @@ class RoutePath:
         )  # fmt: skip
 
     @cached_property
+    def follower_kernel_arrays(
+        self,
+    ) -> tuple[
+        FloatArray, FloatArray, FloatArray, NDArray[np.int64], FloatArray, FloatArray, FloatArray
+    ]:
+        """What ``platoon_sumo.kernels.following.following_step_kernel`` reads of the
+        path: ``kernel_arrays`` with the lane shift per point (``_lane_shift``) before
+        the geometry."""
+        xy, blocks, widths, codes, spans, geometry = self.kernel_arrays
+        return xy, blocks, widths, codes, spans, self._lane_shift_c, geometry
+
+    @cached_property
     def _lane_width(self) -> list[float]:
         return [float(w) for w in self.lane_width_m]
 

@@ -1,0 +1,266 @@
+"""The laser follower's step on a new scan while it holds a track, in one kernel call.
+
+``LaserFollower.step`` in Python makes about ten calls into compiled code for such a
+step (the route projection, ``perceive_kernel``, the corridor tests, the fallback's
+projection, ``follow_kernel``, the lane request), each with its own dispatch and the
+glue between them: about 50 µs a step in the co-simulation, of which the arithmetic is
+a fifth. ``following_step_kernel`` runs the same calls in the same order with the same
+arguments (``platoon_sumo.control.laser_follower``'s methods are the specification; the
+names in the comments are theirs) and hands back what the controller keeps between
+steps. The Python path stays for every other case (no track, no new scan, no corridor,
+a full trail buffer) and is the oracle of ``tests/control/test_laser_follower_fused.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from platoon_sumo.kernels.follower import follow_kernel, perceive_kernel
+from platoon_sumo.kernels.route import (
+    _pmax,
+    _point_at,
+    lane_step_kernel,
+    project_pruned,
+    same_lane_kernel,
+)
+
+FOLLOWED = 0
+"""The whole step is done: the command's speed, yaw rate and lane request are given."""
+LOST = 1
+"""The scan was processed but the track is not confirmed (or was dropped): the caller
+goes on with the lost branch."""
+LANE_UNREAD = 2
+"""Done but for the lane request, which the caller asks the path (lane ids the kernels
+cannot read as numbers)."""
+RAISE = 3
+"""A projection's hint or window is not finite: the caller raises what
+``RoutePath.project_lane`` raises for them (nothing is to be kept)."""
+
+PARAM_NAMES = (
+    "corridor_lane",
+    "corridor_value",
+    "corridor_exit_s",
+    "confirm_scans",
+    "max_missed_scans",
+    "lost_after_s",
+    "trail_spacing_m",
+    "max_trail_points",
+    "steer_at_trail",
+    "fallback_lookahead_min_m",
+    "fallback_lookahead_time_s",
+)
+"""The entries of ``following_step_kernel``'s ``params``: the corridor (1: "lane", with
+``corridor_value`` its margin in lane widths; 0: a half-width of ``corridor_value``
+metres), the track's exit and loss rules, the trail's spacing and size, the steering
+target (1: the trail) and the fallback's look-ahead."""
+
+
+@njit(cache=True)
+def _valid_window(hint: float, window: float) -> bool:
+    """``RoutePath.project_lane``'s check of its hint and window."""
+    return math.isfinite(hint) and window >= 0.0 and window < math.inf
+
+
+@njit(cache=True)
+def _raising(route_s: float, fallback_s: float, x: float, y: float, hint: float, window: float):
+    """The kernel's result for ``RAISE``: the projection's point, hint and window (the
+    rest is never read)."""
+    return (RAISE, route_s, 0.0, 0.0, 0.0, False, -1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            False, False, 0.0, False, 0, 0, 0.0, 0.0, fallback_s, 0.0, 0.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 0.0, 0.0, 0, False, x, y, hint, window)  # fmt: skip
+
+
+@njit(cache=True)
+def following_step_kernel(
+    xy: np.ndarray,
+    blocks: np.ndarray,
+    widths: np.ndarray,
+    codes: np.ndarray,
+    spans: np.ndarray,
+    shift: np.ndarray,
+    geometry: np.ndarray,
+    ranges: np.ndarray,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    consts: np.ndarray,
+    perception: np.ndarray,
+    state: np.ndarray,
+    pts: np.ndarray,
+    rows: np.ndarray,
+    cand_pts: np.ndarray,
+    cand_row: np.ndarray,
+    trail: np.ndarray,
+    law: np.ndarray,
+    params: np.ndarray,
+    time_s: float,
+    dt: float,
+    x: float,
+    y: float,
+    yaw: float,
+    speed: float,
+    front: float,
+    length: float,
+    lane_offset: float,
+    look: float,
+    route_s: float,
+    fallback_s: float,
+    ox: float,
+    oy: float,
+    heading: float,
+    hits: int,
+    missed: int,
+    last_hit_s: float,
+    lo: int,
+    hi: int,
+    last_x: float,
+    last_y: float,
+    has_since: bool,
+    since: float,
+):
+    """One step of a laser follower with an active track and a new scan (see the module
+    docstring): ``_locate_on_route``, ``_perceive`` (the track's update, the corridor
+    test and exit rule, the trail), and while the track is confirmed the fallback's
+    ``advance`` and ``_follow``. The trail is rows ``lo:hi`` of ``trail``, which has room
+    for one more; ``state`` is the tracker's filter state (updated in place).
+
+    Returns (status, arc length on the route, mount x, y, yaw, blocked, the row
+    associated, its cluster's points, the track's x, y, vx, vy, position and velocity
+    variances, dropped at the corridor's exit, since when outside the corridor (flag,
+    time), in view, trail lo, hi, last point x, y, the fallback's arc length, speed, yaw
+    rate, gap, range rate, lead speed, the rear's range and bearing, predicted rear x,
+    y, lane request, keep the lane, and for ``RAISE`` the projection's x, y, hint and
+    window)."""
+    spacing = geometry[0]
+    path_length = geometry[1]
+    last_step = geometry[2]
+    lane_corridor = params[0] != 0.0
+    corridor_value = params[1]
+    nan = math.nan
+    # _locate_on_route
+    window = _pmax(4.0 * length, 2.0 * look)
+    if not _valid_window(route_s, window):
+        return _raising(route_s, fallback_s, x, y, route_s, window)
+    route_s = project_pruned(xy, blocks, widths, spacing, path_length, True, route_s, window, x, y)[
+        0
+    ]
+    # _perceive: the sensor pose, then perceive_kernel with the active track
+    c = math.cos(yaw)
+    s = math.sin(yaw)
+    dx = ox - x
+    dy = oy - y
+    mount_x = c * dx + s * dy
+    mount_y = -s * dx + c * dy
+    mount_yaw = heading - yaw
+    _, _, blocked, k, n_cand, tx, ty, tvx, tvy, var_p, var_v = perceive_kernel(
+        ranges, cos_a, sin_a, consts, perception, True, state, time_s, ox, oy, heading, pts,
+        rows, cand_pts, cand_row,
+    )  # fmt: skip
+    # RearTracker.record_step
+    active = True
+    if k < 0:
+        missed += 1
+        if not hits >= params[3] or missed > params[4] or time_s - last_hit_s > params[5]:
+            active = False
+            hits = 0
+        k = -1
+    else:
+        hits += 1
+        missed = 0
+    hit = k >= 0
+    # the corridor test of the track's position (_in_corridor / _ahead_on_route)
+    inside = False
+    if active:
+        reach = 0.5 * (math.hypot(tx - x, ty - y) + 3.0 * length)
+        if not _valid_window(route_s + reach, reach):
+            return _raising(route_s, fallback_s, tx, ty, route_s + reach, reach)
+        at_s, at_lateral, at_width = project_pruned(
+            xy, blocks, widths, spacing, path_length, True, route_s + reach, reach, tx, ty
+        )
+        if not at_s <= route_s:  # ahead (a NaN arc length counts, as in Python)
+            half_width = (0.5 + corridor_value) * at_width if lane_corridor else corridor_value
+            inside = abs(at_lateral - lane_offset) <= half_width
+    dropped = False
+    if not active or inside:
+        has_since = False
+    elif not has_since:
+        has_since = True
+        since = time_s
+    elif time_s - since > params[2]:
+        dropped = True  # it turned off the route: lost
+        active = False
+        hits = 0
+        has_since = False
+        hit = False
+    # _append_trail
+    if hit and inside and (hi == lo or math.hypot(tx - last_x, ty - last_y) >= params[6]):
+        trail[hi, 0] = tx
+        trail[hi, 1] = ty
+        hi += 1
+        if hi - lo > params[7]:
+            lo += 1
+        last_x = tx
+        last_y = ty
+    if not (active and hits >= params[3]):
+        return (LOST, route_s, mount_x, mount_y, mount_yaw, blocked, k, n_cand, tx, ty, tvx,
+                tvy, var_p, var_v, dropped, has_since, since, hit, lo, hi, last_x, last_y,
+                fallback_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, False, nan, nan,
+                nan, nan)  # fmt: skip
+    # _RouteShadow.advance
+    fallback_look = _pmax(params[9], params[10] * speed)
+    fallback_window = _pmax(20.0, 3 * fallback_look)
+    if not _valid_window(fallback_s, fallback_window):
+        return _raising(route_s, fallback_s, x, y, fallback_s, fallback_window)
+    fallback_s = project_pruned(
+        xy, blocks, widths, spacing, path_length, True, fallback_s, fallback_window, x, y
+    )[0]
+    # _follow: the track predicted to now (RearTracker.predicted_state, at its own time)
+    gone = _pmax(time_s - time_s, 0.0)
+    rx = tx + gone * tvx
+    ry = ty + gone * tvy
+    reach = 0.5 * (math.hypot(rx - x, ry - y) + 3.0 * length)
+    if not _valid_window(route_s + reach, reach):
+        return _raising(route_s, fallback_s, rx, ry, route_s + reach, reach)
+    at_s, at_lateral, at_width = project_pruned(
+        xy, blocks, widths, spacing, path_length, True, route_s + reach, reach, rx, ry
+    )
+    ahead = not at_s <= route_s
+    rear_inside = False
+    if ahead:
+        half_width = (0.5 + corridor_value) * at_width if lane_corridor else corridor_value
+        rear_inside = abs(at_lateral - lane_offset) <= half_width
+    route_x = 0.0
+    route_y = 0.0
+    if not rear_inside:
+        route_x, route_y = _point_at(xy, spacing, path_length, last_step, route_s + look)
+    lo, cmd, yaw_rate, gap, range_rate, lead_speed, range_m, bearing = follow_kernel(
+        trail, lo, hi, law, params[8] != 0.0, x, y, yaw, speed, front, dt, look, rx, ry, tvx,
+        tvy, rear_inside, not rear_inside, route_x, route_y, mount_x, mount_y, mount_yaw,
+    )  # fmt: skip
+    # _lane_request
+    status = FOLLOWED
+    lane = 0
+    keep = False
+    if hit and ahead:
+        if codes.shape[0] == 0:
+            status = LANE_UNREAD
+        else:
+            lane = lane_step_kernel(
+                codes, widths, spans, spacing, route_s, lane_offset, at_s, at_lateral
+            )
+            if lane == -2:
+                status = LANE_UNREAD
+                lane = 0
+            elif lane == 0:
+                same = same_lane_kernel(
+                    codes, widths, shift, spacing, route_s, lane_offset, at_s, at_lateral
+                )
+                if same == -2:
+                    status = LANE_UNREAD
+                keep = same == 1
+    return (status, route_s, mount_x, mount_y, mount_yaw, blocked, k, n_cand, tx, ty, tvx, tvy,
+            var_p, var_v, dropped, has_since, since, hit, lo, hi, last_x, last_y, fallback_s,
+            cmd, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry, lane, keep,
+            nan, nan, nan, nan)  # fmt: skip
