@@ -226,15 +226,21 @@ def _checked(cls: type, obs: Observation, command: object) -> Command:
     """`command` if it is a Command a vehicle can execute; a PluginError naming the
     controller, the vehicle, the time and what is wrong otherwise (never let SUMO drive
     the car on instead)."""
-    who = f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}'"
     if not isinstance(command, Command):
         raise PluginError(
-            f"{who} returned {type(command).__name__} at t={obs.time_s:.2f} s, not a Command"
+            f"{_who(cls, obs)} returned {type(command).__name__} at t={obs.time_s:.2f} s, "
+            "not a Command"
         )
     problem = command_problem(command)
     if problem:
-        raise PluginError(f"{who} returned an invalid command at t={obs.time_s:.2f} s: {problem}")
+        raise PluginError(
+            f"{_who(cls, obs)} returned an invalid command at t={obs.time_s:.2f} s: {problem}"
+        )
     return command
+
+
+def _who(cls: type, obs: Observation) -> str:
+    return f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}'"
 
 
 def command_problem(command: Command) -> str | None:

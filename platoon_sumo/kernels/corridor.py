@@ -125,10 +125,17 @@ def corridor_intrusions(
             hl, hwk = 0.5 * rects[k, 3], 0.5 * rects[k, 4]
             size = math.hypot(hl, hwk)
             cx, cy = rects[k, 0], rects[k, 1]
-            if math.hypot(cx - mx, cy - my) > reach + size:
+            # bounding circles apart: no overlap (squared: a third of hypot's cost)
+            dx = cx - mx
+            dy = cy - my
+            r = reach + size
+            if dx * dx + dy * dy > r * r:
                 continue
             for i in range(m):
-                if math.hypot(cx - sx[i], cy - sy[i]) > sh[i] + sw[i] + size:
+                dx = cx - sx[i]
+                dy = cy - sy[i]
+                r = sh[i] + sw[i] + size
+                if dx * dx + dy * dy > r * r:
                     continue
                 depth = rectangle_depth(
                     sx[i], sy[i], sc[i], ss[i], sh[i], sw[i], cx, cy, rc[k], rs[k], hl, hwk
