@@ -446,7 +446,7 @@ class LaserFollower:
         xy, blocks, widths, codes, spans, shift, geometry = self._path_arrays
         (
             status, route_s, mount_x, mount_y, mount_yaw, blocked, k, b.cand_n, tx, ty, tvx,
-            tvy, var_p, var_v, dropped, has_since, _since_s, in_view, lo, hi, last_x, last_y,
+            tvy, var_p, var_v, dropped, has_since, in_view, lo, hi, last_x, last_y,
             fallback_s, speed, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry,
             lane, keep, *raise_args,
         ) = following_step_kernel(

@@ -69,7 +69,7 @@ def _raising(route_s: float, fallback_s: float, x: float, y: float, hint: float,
     """The kernel's result for ``RAISE``: the projection's point, hint and window (the
     rest is never read)."""
     return (RAISE, route_s, 0.0, 0.0, 0.0, False, -1, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-            False, False, 0.0, False, 0, 0, 0.0, 0.0, fallback_s, 0.0, 0.0, 0.0, 0.0, 0.0,
+            False, False, False, 0, 0, 0.0, 0.0, fallback_s, 0.0, 0.0, 0.0, 0.0, 0.0,
             0.0, 0.0, 0.0, 0.0, 0, False, x, y, hint, window)  # fmt: skip
 
 
@@ -128,8 +128,8 @@ def following_step_kernel(
 
     Returns (status, arc length on the route, mount x, y, yaw, blocked, the row
     associated, its cluster's points, the track's x, y, vx, vy, position and velocity
-    variances, dropped at the corridor's exit, since when outside the corridor (flag,
-    time), in view, trail lo, hi, last point x, y, the fallback's arc length, speed, yaw
+    variances, dropped at the corridor's exit, outside the corridor (the caller keeps
+    since when), in view, trail lo, hi, last point x, y, the fallback's arc length, speed, yaw
     rate, gap, range rate, lead speed, the rear's range and bearing, predicted rear x,
     y, lane request, keep the lane, and for ``RAISE`` the projection's x, y, hint and
     window)."""
@@ -205,7 +205,7 @@ def following_step_kernel(
         last_y = ty
     if not (active and hits >= params[3]):
         return (LOST, route_s, mount_x, mount_y, mount_yaw, blocked, k, n_cand, tx, ty, tvx,
-                tvy, var_p, var_v, dropped, has_since, since, hit, lo, hi, last_x, last_y,
+                tvy, var_p, var_v, dropped, has_since, hit, lo, hi, last_x, last_y,
                 fallback_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0, False, nan, nan,
                 nan, nan)  # fmt: skip
     # _RouteShadow.advance
@@ -261,6 +261,6 @@ def following_step_kernel(
                     status = LANE_UNREAD
                 keep = same == 1
     return (status, route_s, mount_x, mount_y, mount_yaw, blocked, k, n_cand, tx, ty, tvx, tvy,
-            var_p, var_v, dropped, has_since, since, hit, lo, hi, last_x, last_y, fallback_s,
+            var_p, var_v, dropped, has_since, hit, lo, hi, last_x, last_y, fallback_s,
             cmd, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry, lane, keep,
             nan, nan, nan, nan)  # fmt: skip
