@@ -614,18 +614,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"background: {background} vehicles in {routes_file.name}", flush=True)
     # numba compiles the kernels on their first call and caches them next to the source:
     # a short untimed co-simulation first, so that no timed run pays for compiling
+    results = work / "results"
     largest = max(cases)
     if largest:
         warm_end = args.warmup + args.stagger + 10.0
-        out_warm = work / "results" / "compile_warmup"
+        out_warm = results / "compile_warmup"
+        shutil.rmtree(out_warm, ignore_errors=True)
         print(f"compiling the kernels: {largest} platoon vehicles to {warm_end:g} s", flush=True)
-        subprocess.run(
+        done = subprocess.run(
             cli("run", str(scenarios[largest]), "--out", str(out_warm), "--quiet",
                 "--end", repr(warm_end)),
-            check=True, capture_output=True,
+            capture_output=True, text=True,
         )  # fmt: skip
+        if done.returncode != 0:
+            raise SystemExit(f"warm-up run failed: {done.stderr.strip() or done.stdout.strip()}")
 
-    results = work / "results"
     alone: dict[float, Run] = {}
     bare: dict[float, Run] = {}
     cosim: dict[int, Run] = {}
