@@ -74,6 +74,42 @@ def _raising(route_s: float, fallback_s: float, x: float, y: float, hint: float,
 
 
 @njit(cache=True)
+def _ahead_on_route(
+    xy: np.ndarray,
+    blocks: np.ndarray,
+    widths: np.ndarray,
+    spacing: float,
+    path_length: float,
+    route_s: float,
+    x: float,
+    y: float,
+    length: float,
+    px: float,
+    py: float,
+    lane_offset: float,
+    lane_corridor: bool,
+    corridor_value: float,
+) -> tuple[bool, float, float, float, float, bool, bool]:
+    """``LaserFollower._ahead_on_route`` and ``_in_corridor`` for the point (px, py), the
+    follower at (x, y) and ``route_s`` on its route: (the projection's hint and window
+    are valid, hint, window, the point's arc length and lateral offset, whether it is
+    ahead, whether it is inside the corridor)."""
+    reach = 0.5 * (math.hypot(px - x, py - y) + 3.0 * length)
+    hint = route_s + reach
+    if not _valid_window(hint, reach):
+        return False, hint, reach, 0.0, 0.0, False, False
+    at_s, at_lateral, at_width = project_pruned(
+        xy, blocks, widths, spacing, path_length, True, hint, reach, px, py
+    )
+    ahead = not at_s <= route_s  # a NaN arc length counts as ahead, as in Python
+    inside = False
+    if ahead:
+        half_width = (0.5 + corridor_value) * at_width if lane_corridor else corridor_value
+        inside = abs(at_lateral - lane_offset) <= half_width
+    return True, hint, reach, at_s, at_lateral, ahead, inside
+
+
+@njit(cache=True)
 def following_step_kernel(
     xy: np.ndarray,
     blocks: np.ndarray,
@@ -143,9 +179,9 @@ def following_step_kernel(
     window = _pmax(4.0 * length, 2.0 * look)
     if not _valid_window(route_s, window):
         return _raising(route_s, fallback_s, x, y, route_s, window)
-    route_s = project_pruned(xy, blocks, widths, spacing, path_length, True, route_s, window, x, y)[
-        0
-    ]
+    route_s, _, _ = project_pruned(
+        xy, blocks, widths, spacing, path_length, True, route_s, window, x, y
+    )
     # _perceive: the sensor pose, then perceive_kernel with the active track
     c = math.cos(yaw)
     s = math.sin(yaw)
@@ -173,15 +209,12 @@ def following_step_kernel(
     # the corridor test of the track's position (_in_corridor / _ahead_on_route)
     inside = False
     if active:
-        reach = 0.5 * (math.hypot(tx - x, ty - y) + 3.0 * length)
-        if not _valid_window(route_s + reach, reach):
-            return _raising(route_s, fallback_s, tx, ty, route_s + reach, reach)
-        at_s, at_lateral, at_width = project_pruned(
-            xy, blocks, widths, spacing, path_length, True, route_s + reach, reach, tx, ty
-        )
-        if not at_s <= route_s:  # ahead (a NaN arc length counts, as in Python)
-            half_width = (0.5 + corridor_value) * at_width if lane_corridor else corridor_value
-            inside = abs(at_lateral - lane_offset) <= half_width
+        valid, hint, reach, _, _, _, inside = _ahead_on_route(
+            xy, blocks, widths, spacing, path_length, route_s, x, y, length, tx, ty,
+            lane_offset, lane_corridor, corridor_value,
+        )  # fmt: skip
+        if not valid:
+            return _raising(route_s, fallback_s, tx, ty, hint, reach)
     dropped = False
     if not active or inside:
         has_since = False
@@ -213,24 +246,19 @@ def following_step_kernel(
     fallback_window = _pmax(20.0, 3 * fallback_look)
     if not _valid_window(fallback_s, fallback_window):
         return _raising(route_s, fallback_s, x, y, fallback_s, fallback_window)
-    fallback_s = project_pruned(
+    fallback_s, _, _ = project_pruned(
         xy, blocks, widths, spacing, path_length, True, fallback_s, fallback_window, x, y
-    )[0]
+    )
     # _follow: the track predicted to now (RearTracker.predicted_state, at its own time)
     gone = _pmax(time_s - time_s, 0.0)
     rx = tx + gone * tvx
     ry = ty + gone * tvy
-    reach = 0.5 * (math.hypot(rx - x, ry - y) + 3.0 * length)
-    if not _valid_window(route_s + reach, reach):
-        return _raising(route_s, fallback_s, rx, ry, route_s + reach, reach)
-    at_s, at_lateral, at_width = project_pruned(
-        xy, blocks, widths, spacing, path_length, True, route_s + reach, reach, rx, ry
-    )
-    ahead = not at_s <= route_s
-    rear_inside = False
-    if ahead:
-        half_width = (0.5 + corridor_value) * at_width if lane_corridor else corridor_value
-        rear_inside = abs(at_lateral - lane_offset) <= half_width
+    valid, hint, reach, at_s, at_lateral, ahead, rear_inside = _ahead_on_route(
+        xy, blocks, widths, spacing, path_length, route_s, x, y, length, rx, ry, lane_offset,
+        lane_corridor, corridor_value,
+    )  # fmt: skip
+    if not valid:
+        return _raising(route_s, fallback_s, rx, ry, hint, reach)
     route_x = 0.0
     route_y = 0.0
     if not rear_inside:
