@@ -24,6 +24,7 @@ from platoon_sumo.geometry import (
     wrap_angle,
     yaw_to_sumo_angle_deg,
 )
+from platoon_sumo.kernels.rectangles import overlapping_pairs_kernel
 from platoon_sumo.kernels.sideways import advanced, landing_conflicts, sideways_conflicts
 
 SETTINGS = settings(deadline=None, max_examples=200)
@@ -229,6 +230,10 @@ def test_overlapping_pairs_matches_brute_force(
     # Index arrays (unsorted, with duplicates) mean the same as masks.
     idx = np.flatnonzero(mask)[::-1]
     np.testing.assert_array_equal(overlapping_pairs(rects, np.concatenate([idx, idx]), tol), got)
+    # the loop's compiled sweep (sorted unique subject rows) finds the same pairs
+    kernel = overlapping_pairs_kernel(rects, np.flatnonzero(mask), tol)
+    assert kernel.dtype == np.int64 and kernel.shape == (len(expected), 2)
+    np.testing.assert_array_equal(kernel, expected)
 
 
 def test_overlapping_pairs_sorted_and_subject_rules() -> None:

@@ -42,14 +42,25 @@ class Actuate:
     limits and model (usually one call for the whole fleet); the group's first member's
     actuator instance is called."""
 
+    def __init__(self) -> None:
+        self._group_of: dict[tuple[str, type], int] = {}
+        """(platoon, actuator class) -> its group's number: the group's key hashes
+        frozen configurations of about 20 fields, so it is worked out once a platoon."""
+        self._groups: dict[tuple[object, ...], int] = {}
+
     def __call__(self, ctx: StepContext) -> None:
         fleet, world = ctx.fleet, ctx.world
         footprints = ctx.footprints if len(ctx.footprints) == len(world) else None
-        groups: dict[tuple[object, ...], list[Member]] = {}
+        groups: dict[int, list[Member]] = {}
+        group_of = self._group_of
         for m in fleet:
-            p = m.platoon
-            key = (type(m.actuator), p.config.vehicle, p.limits, p.model)
-            groups.setdefault(key, []).append(m)
+            kind = (m.platoon_id, type(m.actuator))
+            number = group_of.get(kind)
+            if number is None:
+                p = m.platoon
+                key = (type(m.actuator), p.config.vehicle, p.limits, p.model)
+                number = group_of[kind] = self._groups.setdefault(key, len(self._groups))
+            groups.setdefault(number, []).append(m)
         for group in groups.values():
             self._apply(ctx, group, footprints)
 

@@ -14,11 +14,11 @@ from platoon_sumo.geometry import (
     LENGTH,
     YAW,
     centre_to_front_bumper,
-    overlapping_pairs,
     rectangle_corners,
     rectangles_crossing_segments,
     wrap_angle,
 )
+from platoon_sumo.kernels.rectangles import overlapping_pairs_kernel
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.ports import FloatArray
 from platoon_sumo.platoon import LinkMonitor, bumper_gap_m, predecessor_ids
@@ -104,7 +104,9 @@ class SafetyCheck:
         if not len(subjects):
             self._contacts.update(())
             return
-        pairs = overlapping_pairs(rects, subjects)
+        if not np.isfinite(rects).all():
+            raise ValueError(f"a footprint is not finite at t={world.time_s:.2f} s")
+        pairs = overlapping_pairs_kernel(rects, np.unique(subjects), 0.0)
         network = ctx.run.plan.network
         now = {
             (a, b) if a < b else (b, a)
@@ -150,15 +152,18 @@ class SafetyCheck:
         if dt_s is None or before is None or rects_before is None:
             return
         world, rects = ctx.world, ctx.footprints
-        rows = [(k, before.index[vid]) for k, vid in enumerate(world.ids) if vid in before.index]
-        if not rows:
+        was = before.index.get
+        was_at = np.fromiter((was(vid, -1) for vid in world.ids), np.int64, len(world.ids))
+        now_rows = np.flatnonzero(was_at >= 0)
+        if not len(now_rows):
             return
-        now_rows, was_rows = np.array(rows).T
+        was_rows = was_at[now_rows]
         # how far the body moved: its farthest corner (a rigid body: at least its centre).
         # SUMO turned a car on the race circuit by 50 degrees in a step, its centre 0.96 m
         # beyond its speed, a corner 4 m: its side swept into a platoon car's corridor,
         # which touched it in the next step (seed 44, 102.9 s)
-        moved = rectangle_corners(rects[now_rows]) - rectangle_corners(rects_before[was_rows])
+        corners = rectangle_corners(np.concatenate([rects[now_rows], rects_before[was_rows]]))
+        moved = corners[: len(now_rows)] - corners[len(now_rows) :]
         moved_m = np.hypot(moved[..., 0], moved[..., 1]).max(axis=1)
         placed = was_placed(moved_m, world.speed_mps[now_rows], dt_s)
         reach = np.abs(world.speed_mps) * PLACED_REACTION_S + 0.5 * rects[:, LENGTH]
