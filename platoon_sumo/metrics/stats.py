@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
+from platoon_sumo.kernels.series import add_to_series
 from platoon_sumo.metrics.kernels import l2_gain
 from platoon_sumo.metrics.string_stability import MIN_INPUT_SHARE, assess
 
@@ -158,18 +159,7 @@ class RunStats:
 
     def _add(self, name: str, rows: np.ndarray, x: np.ndarray) -> None:
         """One value per vehicle into the series `name`; NaN values are skipped."""
-        ok = ~np.isnan(x)
-        if not ok.all():
-            rows, x = rows[ok], x[ok]
-        c = _series(name)
-        state = self._state
-        state[rows, c + _N] += 1
-        state[rows, c + _SUM_SQ] += x * x
-        magnitude = np.where(x < 0.0, -x, x)
-        largest = state[rows, c + _MAX_ABS]
-        state[rows, c + _MAX_ABS] = np.where(magnitude > largest, magnitude, largest)
-        smallest = state[rows, c + _MIN]
-        state[rows, c + _MIN] = np.where(x < smallest, x, smallest)
+        add_to_series(self._state, rows, x, _series(name))
 
     def add_step(self, time_s: float, columns: Columns) -> None:
         """Fold in one step: every column one value per vehicle (each vehicle once)."""
