@@ -21,6 +21,11 @@ from platoon_sumo.sensors.laser import LaserScan
 class Sense:
     def __init__(self) -> None:
         self._models: dict[tuple[type, Any], SensorModel] = {}
+        """One instance per sensor model and parameters: the members sharing them are
+        sensed in one batch."""
+        self._model_of: dict[int, SensorModel] = {}
+        """By the plan's sensor object (it lives as long as the run): hashing the frozen
+        parameters for every member and step cost more than the lookup."""
 
     def __call__(self, ctx: StepContext) -> None:
         ctx.sensed_world, ctx.sensed_footprints = ctx.world, ctx.footprints
@@ -28,22 +33,25 @@ class Sense:
         if not members:
             return
         time_s = ctx.world.time_s
-        due: dict[tuple[type, Any], list[tuple[Member, str]]] = {}
+        due: dict[int, tuple[SensorModel, list[tuple[Member, str]]]] = {}
+        model_of = self._model_of
         for m in members:
             for sensor in m.plan.sensors:
-                key = (sensor.model, sensor.params)
-                model = self._models.get(key)
+                model = model_of.get(id(sensor))
                 if model is None:
-                    model = self._models[key] = sensor.model(sensor.params)
+                    key = (sensor.model, sensor.params)
+                    model = self._models.get(key)
+                    if model is None:
+                        model = self._models[key] = sensor.model(sensor.params)
+                    model_of[id(sensor)] = model
                 last = m.last_sensed_s.get(sensor.name, -np.inf)
                 if time_s - last >= model.period_s - 1e-9:
-                    due.setdefault(key, []).append((m, sensor.name))
+                    due.setdefault(id(model), (model, []))[1].append((m, sensor.name))
         if not due:
             return
         index = ctx.world.index
         predecessors = predecessor_ids(members)
-        for key, group in due.items():
-            model = self._models[key]
+        for model, group in due.values():
             ids = tuple(m.id for m, _ in group)
             rows = ctx.fleet.rows([m for m, _ in group])
             front_x_m, front_y_m = ctx.fleet.front_bumpers(rows)
