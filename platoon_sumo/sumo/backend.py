@@ -219,6 +219,9 @@ class SumoBackend:
         self._lane_signals: dict[str, tuple[str, str, int]] = {}
         """Per vehicle: its lane and the light (id, link index) at that lane's end."""
         self._tls_states: dict[str, str] = {}
+        self._last_read: WorldSnapshot | None = None
+        """This step's world read (None once SUMO stepped): its lanes and speeds are
+        SUMO's until the next step, so the route's reads take them from it."""
         self._polylines: dict[str, tuple[list[float], list[float], list[float], float]] = {}
         self._bends: dict[str, tuple[list[float], list[float]]] = {}
         self._lanes_behind: dict[str, list[str]] = {}
@@ -278,6 +281,7 @@ class SumoBackend:
         return float(self._api.simulation.getTime())
 
     def step(self) -> None:
+        self._last_read = None
         try:
             self._api.simulationStep()
         except self._api.TraCIException as exc:
@@ -324,7 +328,8 @@ class SumoBackend:
             centres = np.concatenate([centres, positions[near]])
         ids = (*wanted, *(others[k] for k in near))
         lanes = (*(veh.getLaneID(vid) for vid in wanted), *(other_lanes[k] for k in near))
-        return self._read(ids, centres, lanes)
+        world = self._last_read = self._read(ids, centres, lanes)
+        return world
 
     def _read(
         self, ids: tuple[str, ...], positions: NDArray[np.float64], lanes: tuple[str, ...]
@@ -1154,8 +1159,12 @@ class SumoBackend:
         veh = self._api.vehicle
         self._tls_states.clear()  # this step's
         contexts = []
+        world = self._last_read
         for vid, horizon in zip(vehicle_ids, horizons_m, strict=True):
-            lane = veh.getLaneID(vid)
+            if world is not None and (i := world.index.get(vid)) is not None:
+                lane = world.lane_ids[i]
+            else:
+                lane = veh.getLaneID(vid)
             remaining = self._lane_length(lane) - veh.getLanePosition(vid) if lane else math.inf
             contexts.append(
                 (
@@ -1239,6 +1248,9 @@ class SumoBackend:
         gap = float(found[1]) + min_gap  # getLeader's distance excludes the minGap
         if gap < 0.0:
             return None
+        world = self._last_read
+        if world is not None and (i := world.index.get(other)) is not None:
+            return VehicleAhead(other, gap, float(world.speed_mps[i]))
         return VehicleAhead(other, gap, float(veh.getSpeed(other)))
 
     def sumo_collisions(self) -> Iterator[tuple[str, str, str]]:
