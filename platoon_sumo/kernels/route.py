@@ -371,3 +371,38 @@ def route_step_kernel(
         if lane == -2:
             return STEP_LANE_UNREAD, s, cmd_speed, yaw_rate, 0
     return STEP_OK, s, cmd_speed, yaw_rate, lane
+
+
+@njit(cache=True)
+def project_members(
+    xy: np.ndarray,
+    xy_starts: np.ndarray,
+    blocks: np.ndarray,
+    block_starts: np.ndarray,
+    widths: np.ndarray,
+    geometry: np.ndarray,
+    path_of: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    s_hint: np.ndarray,
+    window: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``project_pruned`` with a hint for every member at once: member k on path
+    ``path_of[k]``, whose points and lane widths are rows ``xy_starts[p]:xy_starts[p + 1]``
+    of ``xy`` and ``widths``, blocks rows ``block_starts[p]:block_starts[p + 1]`` of
+    ``blocks``, (spacing, length) row p of ``geometry``. Returns (arc lengths, lateral
+    offsets)."""
+    n = path_of.shape[0]
+    s_out = np.empty(n)
+    lateral_out = np.empty(n)
+    for k in range(n):
+        p = path_of[k]
+        a = xy_starts[p]
+        b = xy_starts[p + 1]
+        s, lateral, _ = project_pruned(
+            xy[a:b], blocks[block_starts[p] : block_starts[p + 1]], widths[a:b],
+            geometry[p, 0], geometry[p, 1], True, s_hint[k], window[k], x[k], y[k],
+        )  # fmt: skip
+        s_out[k] = s
+        lateral_out[k] = lateral
+    return s_out, lateral_out

@@ -16,6 +16,7 @@ from platoon_sumo.kernels.corridor import MEMBER_COLUMNS, corridor_intrusions, e
 from platoon_sumo.kernels.lanes import lane_position, moved_along_lanes
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
+from platoon_sumo.loop.paths import PathStack
 from platoon_sumo.path import RoutePath
 from platoon_sumo.sumo.network import Network
 from platoon_sumo.world import VehicleAhead, WorldSnapshot
@@ -77,8 +78,7 @@ class ObstaclesAhead:
     def __init__(self) -> None:
         self._outputs = empty_outputs(64)
         self._rows: dict[tuple[int, str], tuple[float, float, float, float, float, float]] = {}
-        self._paths: list[RoutePath] = []
-        self._stacked: tuple[FloatArray, FloatArray, NDArray[np.int64]] | None = None
+        self._paths = PathStack()
         self._lanes: JunctionLanes | None = None
         self._holding: dict[str, str] = {}
         """Members held behind a car SUMO is to move sideways, and that car."""
@@ -93,10 +93,7 @@ class ObstaclesAhead:
         row = self._rows.get(key)
         if row is None:
             path, config = m.path, m.platoon.config
-            if all(p is not path for p in self._paths):
-                self._paths.append(path)  # kept alive here, so its id stays unique
-                self._stacked = None
-            index = next(k for k, p in enumerate(self._paths) if p is path)
+            index = self._paths.number(path)
             hw = 0.5 * config.vehicle.width_m + CORRIDOR_MARGIN_M
             stride = max(1, int(min(SLICE_M, hw) / path.spacing_m))
             brake = 1.0 / (2.0 * config.supervisor.comfort_decel_mps2)
@@ -151,14 +148,8 @@ class ObstaclesAhead:
         comfort_stop = speed * speed * constants[:, 1]
         table[:, 3] = comfort_stop + LOOK_TIME_S * speed + LOOK_EXTRA_M
         table[:, 4:] = constants[:, 2:]
-        if self._stacked is None:
-            starts = np.zeros(len(self._paths) + 1, dtype=np.int64)
-            np.cumsum([len(p.xy_m) for p in self._paths], out=starts[1:])
-            self._stacked = (
-                np.ascontiguousarray(np.concatenate([p.xy_m for p in self._paths])),
-                np.ascontiguousarray(np.concatenate([p.left_normals for p in self._paths])),
-                starts,
-            )
+        points, starts = self._paths.stacked("xy", lambda p: p.xy_m)
+        normals, _ = self._paths.stacked("left normals", lambda p: p.left_normals)
         selves = np.array([world.index[m.id] for m in members], dtype=np.int64)
         network = ctx.run.plan.network
         fronts = np.column_stack([world.front_x_m[selves], world.front_y_m[selves]])
@@ -177,7 +168,7 @@ class ObstaclesAhead:
         owners = np.concatenate([np.arange(len(rects)), whose, cars[entrants]])
         every = np.concatenate([rects, ahead, entering])
         standing = np.concatenate([standing, entrant_stands])
-        args = (*self._stacked, table, selves, np.ascontiguousarray(every), owners)
+        args = (points, normals, starts, table, selves, np.ascontiguousarray(every), owners)
         count = corridor_intrusions(*args, *self._outputs)
         if count > len(self._outputs[0]):
             self._outputs = empty_outputs(2 * count)

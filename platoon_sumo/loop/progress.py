@@ -6,8 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from platoon_sumo.events import EventKind
+from platoon_sumo.kernels.route import project_members
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, Member
+from platoon_sumo.loop.paths import PathStack
+from platoon_sumo.loop.ports import FloatArray
 from platoon_sumo.world import SignalAhead
 
 #: A member whose front bumper is this close to its path's end has arrived [m].
@@ -42,6 +45,7 @@ class RouteProgress:
     def __init__(self) -> None:
         self._horizons: dict[str, tuple[float, float]] = {}
         """Per platoon: (search window, SUMO look-ahead horizon) [m]."""
+        self._paths = PathStack()
 
     def __call__(self, ctx: StepContext) -> None:
         members = list(ctx.fleet)
@@ -51,19 +55,20 @@ class RouteProgress:
         rows = fleet.rows(members)
         front_x_m, front_y_m = fleet.front_bumpers(rows)
         previous_s_m = fleet.kin[rows, ROUTE_S]
-        route_s_m: list[float] = []
-        lateral_m: list[float] = []
         horizons = [self._horizons_of(m, ctx.dt_s) for m in members]
-        for m, fx, fy, s_m, (window, _) in zip(
-            members, front_x_m.tolist(), front_y_m.tolist(), previous_s_m.tolist(), horizons,
-            strict=True,
-        ):  # fmt: skip
-            s, lateral = m.path.project_sl(fx, fy, s_m, window)
-            route_s_m.append(s)
-            lateral_m.append(lateral)
-        fleet.kin[rows, ROUTE_S] = route_s_m
-        fleet.kin[rows, LATERAL] = lateral_m
-        travelled = np.maximum(fleet.kin[rows, ROUTE_S] - previous_s_m, 0.0).tolist()
+        windows = np.array([window for window, _ in horizons])
+        unknown = np.flatnonzero(~np.isfinite(previous_s_m))
+        if len(unknown):
+            m = members[int(unknown[0])]
+            raise ValueError(
+                f"{m.id}'s arc length on its route is {previous_s_m[unknown[0]]} at "
+                f"t={ctx.world.time_s:.2f} s: its state is not finite"
+            )
+        route_s, lateral = self._project(members, front_x_m, front_y_m, previous_s_m, windows)
+        fleet.kin[rows, ROUTE_S] = route_s
+        fleet.kin[rows, LATERAL] = lateral
+        route_s_m = route_s.tolist()
+        travelled = np.maximum(route_s - previous_s_m, 0.0).tolist()
         contexts = ctx.backend.route_contexts([m.id for m in members], [h for _, h in horizons])
         for m, s_m, travelled_m, (signal, ahead, link) in zip(
             members, route_s_m, travelled, contexts, strict=True
@@ -81,6 +86,23 @@ class RouteProgress:
                 )  # fmt: skip
             if s_m >= m.path.length_m - ARRIVAL_TOLERANCE_M:
                 ctx.remove(m, arrived=True)
+
+    def _project(
+        self, members: list[Member], x_m: FloatArray, y_m: FloatArray, hint_s_m: FloatArray,
+        window_m: FloatArray,
+    ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+        """Each member's front bumper projected on its path near its last arc length
+        (``RoutePath.project_sl``, bit for bit): (arc lengths, lateral offsets)."""
+        stack = self._paths
+        path_of = np.array([stack.number(m.path) for m in members], dtype=np.int64)
+        xy, xy_starts = stack.stacked("xy", lambda p: p.kernel_arrays[0])
+        blocks, block_starts = stack.stacked("blocks", lambda p: p.kernel_arrays[1])
+        widths, _ = stack.stacked("lane widths", lambda p: p.kernel_arrays[2])
+        geometry, _ = stack.stacked("geometry", lambda p: p.kernel_arrays[5][None, :2])
+        return project_members(
+            xy, xy_starts, blocks, block_starts, widths, geometry, path_of, x_m, y_m,
+            hint_s_m, window_m,
+        )  # fmt: skip
 
     def _horizons_of(self, m: Member, dt_s: float) -> tuple[float, float]:
         found = self._horizons.get(m.platoon_id)
