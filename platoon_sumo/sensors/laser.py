@@ -229,29 +229,23 @@ class LaserScan:
         predecessor_rays: int | None,
     ) -> LaserScan:
         """``from_ranges`` without its checks and conversions, for the sensor's hot path:
-        `ranges` is a float64 row of ``config.samples`` readings, the rest plain floats.
-
-        The fields are handed over as the instance's dictionary: the frozen dataclass's
-        ``__init__`` sets its 14 fields one ``object.__setattr__`` at a time, about 3 µs
-        a scan in the loop (one per platoon vehicle and step)."""
-        scan = object.__new__(cls)
-        object.__setattr__(scan, "__dict__", {
-            "angle_min": config.angle_min_rad,
-            "angle_max": config.angle_max_rad,
-            "angle_increment": config.angle_increment_rad,
-            "time_increment": 0.0,
-            "scan_time": config.scan_time_s,
-            "range_min": config.range_min_m,
-            "range_max": config.range_max_m,
-            "ranges": ranges,
-            "origin_x_m": origin_x_m,
-            "origin_y_m": origin_y_m,
-            "heading_rad": heading_rad,
-            "stamp_s": stamp_s,
-            "hit_labels": hit_labels,
-            "predecessor_rays": predecessor_rays,
-        })  # fmt: skip
-        return scan
+        `ranges` is a float64 row of ``config.samples`` readings, the rest plain floats."""
+        return cls(
+            angle_min=config.angle_min_rad,
+            angle_max=config.angle_max_rad,
+            angle_increment=config.angle_increment_rad,
+            time_increment=0.0,
+            scan_time=config.scan_time_s,
+            range_min=config.range_min_m,
+            range_max=config.range_max_m,
+            ranges=ranges,
+            origin_x_m=origin_x_m,
+            origin_y_m=origin_y_m,
+            heading_rad=heading_rad,
+            stamp_s=stamp_s,
+            hit_labels=hit_labels,
+            predecessor_rays=predecessor_rays,
+        )
 
     @property
     def angles(self) -> FloatArray:
