@@ -37,16 +37,20 @@ def overlapping_pairs_kernel(
     """``geometry.overlapping_pairs`` for finite (N, 5) rectangles and sorted, unique
     subject rows, in one compiled pass: (K, 2) pairs ``(i, j)``, i < j, sorted.
 
-    A sweep along x instead of the oracle's grid: the rectangles sorted by centre x, each
-    subject tests those whose centre x lies within its bounding radius plus the largest
-    one, by bounding circles first (the same ``hypot`` test as the oracle), then by
-    penetration depth (``rectangle_depth``, the oracle's expression)."""
+    A sweep instead of the oracle's grid, along the axis (x or y) the centres spread
+    over most (a road along y would put every car in one x band): the rectangles sorted
+    by that coordinate, each subject tests those within its bounding radius plus the
+    largest one along it, by bounding circles first (the same ``hypot`` test as the
+    oracle), then by penetration depth (``rectangle_depth``, the oracle's expression)."""
     n = rects.shape[0]
     radius = np.empty(n)
     for k in range(n):
         radius[k] = 0.5 * math.hypot(rects[k, 3], rects[k, 4])
-    order = np.argsort(rects[:, 0], kind="mergesort")
-    xs = rects[order, 0]
+    axis = 0
+    if n and np.ptp(rects[:, 1]) > np.ptp(rects[:, 0]):
+        axis = 1
+    order = np.argsort(rects[:, axis], kind="mergesort")
+    xs = rects[order, axis]
     is_subject = np.zeros(n, dtype=np.bool_)
     for s in subjects:
         is_subject[s] = True
@@ -55,8 +59,8 @@ def overlapping_pairs_kernel(
     count = 0
     for s in subjects:
         reach = radius[s] + r_max
-        lo = np.searchsorted(xs, rects[s, 0] - reach, side="left")
-        hi = np.searchsorted(xs, rects[s, 0] + reach, side="right")
+        lo = np.searchsorted(xs, rects[s, axis] - reach, side="left")
+        hi = np.searchsorted(xs, rects[s, axis] + reach, side="right")
         for q in range(lo, hi):
             k = order[q]
             if k == s or (is_subject[k] and k < s):  # a pair of subjects: found once
