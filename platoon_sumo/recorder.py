@@ -14,6 +14,7 @@ report's scan figure.
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import math
 from collections.abc import Sequence
@@ -122,7 +123,11 @@ class TrajectoryRecorder(StepHook):
         self.chunk_rows = chunk_rows
         self.writer = TableWriter(path, fmt) if write else None
         self.stats = stats
-        self._buffer: list[list[Any]] = [[] for _ in TRAJECTORY_COLUMNS]
+        self._steps: list[list[list[Any]]] = []
+        """The steps' columns not yet written, a step appended whole in one call: an
+        interrupt (Ctrl-C) between the columns once left them of unequal lengths, and
+        the end's flush failed and lost every row still in memory."""
+        self._buffered_rows = 0
         """The rows not written yet, column by column."""
         self.rows_written = 0
         self._accel: dict[str, float] = {}
@@ -164,12 +169,11 @@ class TrajectoryRecorder(StepHook):
                         sum(i.lost_total for i in inboxes),
                     )
         if self.writer is not None and vehicles:
-            buffer = self._buffer
-            if self.rows_written + len(buffer[0]) == 0:
+            if self.rows_written == 0 and not self._steps:
                 assert tuple(columns) == TRAJECTORY_COLUMNS, "columns out of order"
-            for kept, column in zip(buffer, columns.values(), strict=True):
-                kept.extend(column)
-            if len(buffer[0]) >= self.chunk_rows:
+            self._steps.append(list(columns.values()))
+            self._buffered_rows += len(vehicles)
+            if self._buffered_rows >= self.chunk_rows:
                 self.flush()
 
     def _columns(self, record: StepRecord) -> dict[str, list[Any]]:
@@ -252,11 +256,15 @@ class TrajectoryRecorder(StepHook):
         }  # fmt: skip
 
     def flush(self) -> None:
-        rows = len(self._buffer[0])
-        if rows and self.writer is not None:
-            self.writer.write(self._buffer)
-            self.rows_written += rows
-            self._buffer = [[] for _ in TRAJECTORY_COLUMNS]
+        steps = self._steps
+        if steps and self.writer is not None:
+            columns = [
+                list(itertools.chain.from_iterable(step[k] for step in steps))
+                for k in range(len(TRAJECTORY_COLUMNS))
+            ]
+            self.writer.write(columns)
+            self.rows_written += len(columns[0])
+            self._steps, self._buffered_rows = [], 0
 
     def on_end(self, outcome: RunOutcome) -> None:
         self.flush()
