@@ -128,7 +128,7 @@ class TrajectoryRecorder(StepHook):
         interrupt (Ctrl-C) between the columns once left them of unequal lengths, and
         the end's flush failed and lost every row still in memory."""
         self._buffered_rows = 0
-        """The rows not written yet, column by column."""
+        """How many rows `_steps` holds."""
         self.rows_written = 0
         self._accel: dict[str, float] = {}
         self._trails: dict[str, PathTrail] = {}
