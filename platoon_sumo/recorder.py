@@ -62,29 +62,31 @@ TRAIL_MAX_POINTS = 5000
 
 
 class TableWriter:
-    """Appends chunks of columns (lists in `TRAJECTORY_COLUMNS` order, None for an empty
-    cell) to a CSV or Parquet file, through Arrow: its CSV writer formats a chunk's
-    floats in compiled code (the csv module's float formatting, about 0.5 µs a number,
-    was the loop's largest single cost); the same shortest round-trip digits, integral
-    floats without ".0", text quoted."""
+    """Appends chunks of columns (lists or arrays in the order of `column_types`, by
+    default `TRAJECTORY_COLUMNS`; None for an empty cell) to a CSV or Parquet file,
+    through Arrow: its CSV writer formats a chunk's floats in compiled code (the csv
+    module's float formatting, about 0.5 µs a number, was the loop's largest single
+    cost); the same shortest round-trip digits, integral floats without ".0", text
+    quoted."""
 
-    def __init__(self, path: Path, fmt: str = "csv"):
+    def __init__(self, path: Path, fmt: str = "csv", column_types: dict[str, str] = COLUMN_TYPES):
         if fmt not in FORMATS:
             raise ValueError(f"unknown table format {fmt!r}; expected one of {FORMATS}")
         self.path, self.fmt = path, fmt
         self._parquet: pq.ParquetWriter | None = None
         types = {"f": pa.float64(), "i": pa.int64(), "s": pa.string()}
-        self._schema = pa.schema([(c, types[t]) for c, t in COLUMN_TYPES.items()])
+        self._schema = pa.schema([(c, types[t]) for c, t in column_types.items()])
 
     def open(self) -> None:
         if self.fmt == "csv":
             with self.path.open("w", newline="") as f:
-                csv.writer(f).writerow(TRAJECTORY_COLUMNS)
+                csv.writer(f).writerow(self._schema.names)
         else:
             self._parquet = pq.ParquetWriter(str(self.path), self._schema)
 
-    def write(self, columns: Sequence[list[Any]]) -> None:
-        if not columns or not columns[0]:
+    def write(self, columns: Sequence[Any]) -> None:
+        """Append one chunk: a list or array per column, in the table's order."""
+        if not columns or not len(columns[0]):
             return
         schema = self._schema
         arrays = [pa.array(col, type=schema.field(i).type) for i, col in enumerate(columns)]
@@ -123,7 +125,7 @@ class TrajectoryRecorder(StepHook):
         self.chunk_rows = chunk_rows
         self.writer = TableWriter(path, fmt) if write else None
         self.stats = stats
-        self._steps: list[list[list[Any]]] = []
+        self._steps: list[list[Sequence[Any]]] = []
         """The steps' columns not yet written, a step appended whole in one call: an
         interrupt (Ctrl-C) between the columns once left them of unequal lengths, and
         the end's flush failed and lost every row still in memory."""
@@ -176,57 +178,62 @@ class TrajectoryRecorder(StepHook):
             if self._buffered_rows >= self.chunk_rows:
                 self.flush()
 
-    def _columns(self, record: StepRecord) -> dict[str, list[Any]]:
-        """The step's rows as columns (in `TRAJECTORY_COLUMNS` order), one list
-        comprehension a column (docs/outputs.md defines each)."""
+    def _columns(self, record: StepRecord) -> dict[str, Sequence[Any]]:
+        """The step's rows as columns (in `TRAJECTORY_COLUMNS` order; docs/outputs.md
+        defines each): the records' own fields taken in one transpose, the derived ones
+        one list comprehension a column."""
         vs = record.vehicles
+        if not vs:
+            return {name: [] for name in TRAJECTORY_COLUMNS}
+        (
+            ids, platoon_ids, member_indices, roles, _, _, yaws, xs, ys, speeds, accels, _,
+            route_s, lateral, lane_widths, commands, executed, supervisor, signals, aheads,
+            pred_ids, gaps, pred_rays, _,
+        ) = zip(*vs, strict=True)  # fmt: skip
         lane_ids, index = record.world.lane_ids, record.world.index
-        speed_of = {v.id: v.speed_mps for v in vs}
-        has_pred = [v.predecessor_id is not None for v in vs]
-        pred_speed = [speed_of.get(v.predecessor_id or "") for v in vs]
-        gaps = [v.gap_to_predecessor_m for v in vs]
-        telemetry = [v.command.telemetry for v in vs]
+        speed_of = dict(zip(ids, speeds, strict=True))
+        has_pred = [p is not None for p in pred_ids]
+        pred_speed = [speed_of.get(p or "") for p in pred_ids]
+        telemetry = [c.telemetry for c in commands]
         desired = [
-            t.gap_policy.desired_m(v.speed_mps)
-            if h and t is not None and t.gap_policy is not None
-            else None
-            for v, t, h in zip(vs, telemetry, has_pred, strict=True)
+            t.gap_policy.desired_m(v) if h and t is not None and t.gap_policy is not None else None
+            for v, t, h in zip(speeds, telemetry, has_pred, strict=True)
         ]
         previous_accel = self._accel
-        jerk = [jerk_mps3(v.accel_mps2, previous_accel.get(v.id), self._dt_s) for v in vs]
-        for v in vs:
-            previous_accel[v.id] = v.accel_mps2
+        jerk = [
+            jerk_mps3(a, previous_accel.get(vid), self._dt_s)
+            for vid, a in zip(ids, accels, strict=True)
+        ]
+        previous_accel.update(zip(ids, accels, strict=True))
         trails = self._trails
-        signals = [v.signal for v in vs]
-        aheads = [v.vehicle_ahead for v in vs]
-        rays = [v.predecessor_rays if h else None for v, h in zip(vs, has_pred, strict=True)]
+        rays = [r if h else None for r, h in zip(pred_rays, has_pred, strict=True)]
         time_s = round(record.time_s, 6)
         return {
             "time_s": [time_s] * len(vs),
-            "vehicle_id": [v.id for v in vs],
-            "platoon_id": [v.platoon_id for v in vs],
-            "member_index": [v.member_index for v in vs],
-            "role": [v.role for v in vs],
-            "x_m": [v.front_x_m for v in vs],
-            "y_m": [v.front_y_m for v in vs],
-            "yaw_rad": [v.yaw_rad for v in vs],
-            "speed_mps": [v.speed_mps for v in vs],
-            "accel_mps2": [v.accel_mps2 for v in vs],
+            "vehicle_id": ids,
+            "platoon_id": platoon_ids,
+            "member_index": member_indices,
+            "role": roles,
+            "x_m": xs,
+            "y_m": ys,
+            "yaw_rad": yaws,
+            "speed_mps": speeds,
+            "accel_mps2": accels,
             "jerk_mps3": jerk,
-            "cmd_speed_mps": [_finite(v.command.speed_mps) for v in vs],
-            "cmd_yaw_rate_radps": [v.command.yaw_rate_radps for v in vs],
-            "cmd_heading_rad": [v.command.heading_rad for v in vs],
-            "executed_speed_mps": [_finite(v.executed.speed_mps) for v in vs],
-            "route_s_m": [v.route_s_m for v in vs],
-            "lateral_offset_m": [v.lateral_offset_m for v in vs],
-            "lane_width_m": [v.lane_width_m for v in vs],
-            "lane_id": [lane_ids[i] if (i := index.get(v.id)) is not None else None for v in vs],
+            "cmd_speed_mps": [_finite(c.speed_mps) for c in commands],
+            "cmd_yaw_rate_radps": [c.yaw_rate_radps for c in commands],
+            "cmd_heading_rad": [c.heading_rad for c in commands],
+            "executed_speed_mps": [_finite(c.speed_mps) for c in executed],
+            "route_s_m": route_s,
+            "lateral_offset_m": lateral,
+            "lane_width_m": lane_widths,
+            "lane_id": [lane_ids[i] if (i := index.get(vid)) is not None else None for vid in ids],
             "signal_tls": [s.tls_id if s else None for s in signals],
             "signal_state": [s.state if s else None for s in signals],
             "signal_distance_m": [s.distance_m if s else None for s in signals],
             "ahead_id": [a.vehicle_id if a else None for a in aheads],
             "ahead_gap_m": [a.gap_m if a else None for a in aheads],
-            "predecessor_id": [v.predecessor_id for v in vs],
+            "predecessor_id": pred_ids,
             "predecessor_speed_mps": pred_speed,
             "gap_to_predecessor_m": gaps,
             "measured_gap_m": [
@@ -236,22 +243,22 @@ class TrajectoryRecorder(StepHook):
             "desired_gap_m": desired,
             "spacing_error_m": [spacing_error_m(g, d) for g, d in zip(gaps, desired, strict=True)],
             "time_gap_s": [
-                time_gap_s(g, v.speed_mps) if h else None
-                for g, v, h in zip(gaps, vs, has_pred, strict=True)
+                time_gap_s(g, v) if h else None
+                for g, v, h in zip(gaps, speeds, has_pred, strict=True)
             ],
             "ttc_s": [
-                time_to_collision_s(g, v.speed_mps, p)
-                for g, v, p in zip(gaps, vs, pred_speed, strict=True)
+                time_to_collision_s(g, v, p)
+                for g, v, p in zip(gaps, speeds, pred_speed, strict=True)
             ],
             "lateral_deviation_m": [
-                trail.deviation(v.front_x_m, v.front_y_m)
-                if h and (trail := trails.get(v.predecessor_id)) is not None  # type: ignore[arg-type]
+                trail.deviation(x, y)
+                if h and (trail := trails.get(p)) is not None
                 else None
-                for v, h in zip(vs, has_pred, strict=True)
+                for x, y, p, h in zip(xs, ys, pred_ids, has_pred, strict=True)
             ],
             "predecessor_rays": rays,
             "predecessor_in_view": [int(r > 0) if r is not None else None for r in rays],
-            "supervisor": [v.supervisor_state or None for v in vs],
+            "supervisor": [s or None for s in supervisor],
             "controller_mode": [t.mode or None if t is not None else None for t in telemetry],
         }  # fmt: skip
 

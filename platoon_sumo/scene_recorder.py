@@ -16,7 +16,6 @@ lower rate than the step (`outputs.scene_period_s`) and only near the platoons
 
 from __future__ import annotations
 
-import csv
 import json
 import re
 import zipfile
@@ -30,13 +29,17 @@ from numpy.typing import NDArray
 
 from platoon_sumo.errors import UsageError
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord
+from platoon_sumo.recorder import TableWriter
 
 SCENE_FILE = "scene.csv"
 SCANS_FILE = "scans.npz"
-SCENE_COLUMNS = (
-    "time_s", "vehicle_id", "platoon_id", "member_index", "x_m", "y_m", "yaw_rad",
-    "length_m", "width_m", "speed_mps",
-)  # fmt: skip
+SCENE_TYPES = {
+    "time_s": "f", "vehicle_id": "s", "platoon_id": "s", "member_index": "i", "x_m": "f",
+    "y_m": "f", "yaw_rad": "f", "length_m": "f", "width_m": "f", "speed_mps": "f",
+}  # fmt: skip
+SCENE_COLUMNS = tuple(SCENE_TYPES)
+#: Decimals kept of the numeric columns (rows of the buffered values: x, y, yaw, speed).
+_DECIMALS = ((0, 3), (1, 3), (2, 4), (5, 3))
 #: Columns of a scan's pose array in `scans.npz`.
 POSE_COLUMNS = ("time_s", "stamp_s", "origin_x_m", "origin_y_m", "heading_rad")
 #: Scene times buffered before they are appended to the files.
@@ -58,7 +61,14 @@ class SceneRecorder(StepHook):
         self.radius_m = radius_m
         self._every_steps = 1
         self._step = 0
-        self._rows: list[tuple[Any, ...]] = []
+        self._writer = TableWriter(self.scene_path, "csv", SCENE_TYPES)
+        # the buffered scene times' rows, column-wise: (time, rows) per scene time, the
+        # text columns' cells, and the numeric columns (x to speed) per scene time
+        self._times: list[tuple[float, int]] = []
+        self._ids: list[str] = []
+        self._platoons: list[str | None] = []
+        self._indices: list[int | None] = []
+        self._values: list[NDArray[np.float64]] = []
         self._frames = 0
         self._chunk = 0
         self._lasers: dict[str, int] = {}
@@ -68,34 +78,32 @@ class SceneRecorder(StepHook):
 
     def on_start(self, run: RunContext) -> None:
         self._every_steps = max(1, round(self.period_s / run.dt_s))
-        with self.scene_path.open("w", newline="") as f:
-            csv.writer(f).writerow(SCENE_COLUMNS)
+        self._writer.open()
 
     def on_step(self, record: StepRecord) -> None:
         self._step += 1
         if self._step % self._every_steps or not record.vehicles:
             return
-        world, time_s = record.world, round(record.time_s, 6)
-        ours = {v.id: v for v in record.vehicles}
+        world = record.world
         px = np.array([v.front_x_m for v in record.vehicles])
         py = np.array([v.front_y_m for v in record.vehicles])
         dx = world.front_x_m[:, None] - px[None, :]
         dy = world.front_y_m[:, None] - py[None, :]
         near = np.flatnonzero(np.hypot(dx, dy).min(axis=1, initial=np.inf) <= self.radius_m)
         ids = [world.ids[i] for i in near.tolist()]
+        ours = {v.id: v for v in record.vehicles}
         members = [ours.get(vid) for vid in ids]
-        self._rows.extend(
-            (
-                time_s, vid, member.platoon_id if member else None,
-                member.member_index if member else None, round(x, 3), round(y, 3),
-                round(yaw, 4), length, width, round(speed, 3),
-            )
-            for vid, member, x, y, yaw, length, width, speed in zip(
-                ids, members, world.front_x_m[near].tolist(), world.front_y_m[near].tolist(),
-                world.yaw_rad[near].tolist(), world.length_m[near].tolist(),
-                world.width_m[near].tolist(), world.speed_mps[near].tolist(), strict=True,
-            )
+        self._times.append((round(record.time_s, 6), len(ids)))
+        self._ids.extend(ids)
+        self._platoons.extend(m.platoon_id if m else None for m in members)
+        self._indices.extend(m.member_index if m else None for m in members)
+        self._values.append(
+            np.stack([
+                world.front_x_m[near], world.front_y_m[near], world.yaw_rad[near],
+                world.length_m[near], world.width_m[near], world.speed_mps[near],
+            ])
         )  # fmt: skip
+        time_s = self._times[-1][0]
         for v in record.vehicles:
             scan = v.scan
             if scan is None:
@@ -117,16 +125,21 @@ class SceneRecorder(StepHook):
 
     def flush(self) -> None:
         """Append the buffered scene times to both files."""
-        if self._rows:
-            with self.scene_path.open("a", newline="") as f:
-                csv.writer(f).writerows(self._rows)
+        if self._times:
+            times, counts = zip(*self._times, strict=True)
+            values = np.concatenate(self._values, axis=1)
+            for row, decimals in _DECIMALS:
+                values[row] = np.round(values[row], decimals)
+            self._writer.write(
+                [np.repeat(times, counts), self._ids, self._platoons, self._indices, *values]
+            )
         if self._poses:
             arrays: dict[str, NDArray[Any]] = {}
             for k, poses in self._poses.items():
                 arrays[f"poses_{k}_{self._chunk}"] = np.array(poses, dtype=np.float64)
                 arrays[f"ranges_{k}_{self._chunk}"] = np.stack(self._ranges[k])
             _append_arrays(self.scans_path, arrays)
-        self._rows.clear()
+        self._times, self._ids, self._platoons, self._indices, self._values = [], [], [], [], []
         self._poses.clear()
         self._ranges.clear()
         self._frames = 0

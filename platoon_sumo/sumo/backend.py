@@ -311,16 +311,13 @@ class SumoBackend:
             return _empty_world(self.time_s)
         position = veh.getPosition
         centres = np.array(list(map(position, wanted)), dtype=np.float64)
-        seen = set(wanted)
-        others: list[str] = []
-        other_lanes: list[str] = []
         listing = self._api.lane.getLastStepVehicleIDs
+        lane_of: dict[str, str] = dict.fromkeys(wanted, "")  # each vehicle's first lane
         for lane in self._lanes_near(centres, radius_m):
             for vid in listing(lane):
-                if vid not in seen:
-                    seen.add(vid)
-                    others.append(vid)
-                    other_lanes.append(lane)
+                lane_of.setdefault(vid, lane)
+        others = list(itertools.islice(lane_of, len(wanted), None))
+        other_lanes = list(itertools.islice(lane_of.values(), len(wanted), None))
         near: list[int] = []
         if others:
             positions = np.array(list(map(position, others)), dtype=np.float64)
@@ -339,10 +336,9 @@ class SumoBackend:
         get_angle, get_speed, geometry = veh.getAngle, veh.getSpeed, self._geometry
         angle = np.fromiter(map(get_angle, ids), np.float64, n)
         speed = np.fromiter(map(get_speed, ids), np.float64, n)
-        for vid in ids:
-            if vid not in geometry:  # fixed by the vehicle's type: read once
-                geometry[vid] = (veh.getLength(vid), veh.getWidth(vid))
-        dims = np.array([geometry[vid] for vid in ids], dtype=np.float64).reshape(n, 2)
+        dims = np.array(
+            [geometry.get(vid) or self._size(vid) for vid in ids], dtype=np.float64
+        ).reshape(n, 2)
         return WorldSnapshot(
             time_s=self.time_s,
             ids=ids,
@@ -353,7 +349,7 @@ class SumoBackend:
             width_m=dims[:, 1],
             speed_mps=speed,
             lane_ids=lanes,
-            index={vid: i for i, vid in enumerate(ids)},
+            index=dict(zip(ids, range(n), strict=True)),
         )
 
     def _lanes_near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
@@ -1310,6 +1306,10 @@ class _LaneGrid:
     lane_ids: tuple[str, ...]
     around: dict[tuple[int, int, int], NDArray[np.int64]] = field(default_factory=dict)
 
+    @functools.cached_property
+    def _lane_array(self) -> NDArray[np.object_]:
+        return np.array(self.lane_ids, dtype=object)
+
     @classmethod
     def build(cls, api: ModuleType | _GuiConnection, cell_m: float) -> _LaneGrid:
         lane_ids = tuple(sorted(api.lane.getIDList()))
@@ -1333,8 +1333,8 @@ class _LaneGrid:
         mask = np.zeros(len(self.lane_ids), dtype=np.bool_)
         for cell in base:
             mask[self._around(cell, reach)] = True
-        lane_ids = self.lane_ids
-        return [lane_ids[k] for k in np.flatnonzero(mask).tolist()]
+        listed: list[str] = self._lane_array[mask].tolist()
+        return listed
 
     def _around(self, cell: tuple[int, ...], reach: int) -> NDArray[np.int64]:
         """Lanes in the cells within `reach` cells of `cell` (remembered: platoons pass
