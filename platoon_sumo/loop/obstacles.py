@@ -178,32 +178,33 @@ class ObstaclesAhead:
         who, rect, gap, along = (a[:count] for a in self._outputs)
         entry = seen_by[rect] == who  # waited for at the line, or before it (`_entering`)
         gap = np.where(entry, np.minimum(gap, stop_at[rect]), gap)
-        for k in np.lexsort((rect, gap, who)).tolist():  # per member, nearest first
+        owner = owners[rect]
+        later = rect - len(rects)  # >= 0: where a moving car will be
+        # a car entering the junction beside another member is not this member's
+        skip = (seen_by[rect] != -1) & (seen_by[rect] != who)
+        # SUMO's leader, whose gap along the lanes is the exact one, is followed at its
+        # gap and speed (also where it will be); unless SUMO drives the member (its
+        # safe speed keeps that gap) and the leader's body reaches nearer than the gap
+        # by more than a slice of the corridor (a car standing across the lane:
+        # osm_spreewaldring, SUMO's gap 4.41 m, the footprints 3.84 m apart, and the
+        # follower ran into it). Members we place (planar) are left to SUMO's gap: the
+        # nearer-body test gave the paper world's robots 449 emergency brakings in a
+        # lap, none without it
+        leader_row, leader_gap, sumo_drives = self._leaders(world, members)
+        slice_m = constants[:, 3] * constants[:, 2]
+        skip |= (owner == leader_row[who]) & (
+            (later >= 0) | ~sumo_drives[who] | (gap > leader_gap[who] - slice_m[who])
+        )
+        kept = np.flatnonzero(~skip)
+        order = kept[np.lexsort((rect[kept], gap[kept], who[kept]))]
+        for k in order.tolist():  # per member, nearest first
             j = int(who[k])
             m = members[j]
             if m.obstacle_ahead is not None:
                 continue
-            if seen_by[rect[k]] not in (-1, j):
-                continue  # a car entering the junction beside another member
-            i = int(owners[rect[k]])
-            later = int(rect[k]) - len(rects)  # >= 0: where a moving car will be
-            will_stop = later >= 0 and bool(standing[later])
-            will_stop |= bool(entry[k])
+            i = int(owner[k])
+            will_stop = bool(later[k] >= 0 and standing[later[k]]) or bool(entry[k])
             other = world.ids[i]
-            leader = m.vehicle_ahead
-            if leader is not None and leader.vehicle_id == other:
-                if later >= 0:
-                    continue  # where SUMO's leader will be: followed at its gap and speed
-                # SUMO's leader, whose gap along the lanes is the exact one; unless SUMO
-                # drives the member (its safe speed keeps that gap) and the leader's body
-                # reaches nearer than the gap by more than a slice of the corridor (a car
-                # standing across the lane: osm_spreewaldring, SUMO's gap 4.41 m, the
-                # footprints 3.84 m apart, and the follower ran into it). Members we place
-                # (planar) are left to SUMO's gap: the nearer-body test gave the paper
-                # world's robots 449 emergency brakings in a lap, none without it
-                slice_m = float(constants[j, 3] * constants[j, 2])
-                if not m.actuator.sumo_drives or gap[k] > leader.gap_m - slice_m:
-                    continue
             # a bridge over the path is no obstacle. Compared with the member's own lane,
             # so a body beyond the next junction is not seen until the member reaches the
             # edge before it; compared with the route's lane at the hit instead, platoon
@@ -225,6 +226,22 @@ class ObstaclesAhead:
                     m.path, float(table[j, 1]), float(table[j, 2]), float(table[j, 3]),
                     float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
                 )  # fmt: skip
+
+    @staticmethod
+    def _leaders(
+        world: WorldSnapshot, members: list[Member]
+    ) -> tuple[IntArray, FloatArray, NDArray[np.bool_]]:
+        """Per member: its SUMO leader's row in `world` (-2: none, or not in it), the
+        leader's gap [m], and whether SUMO drives the member."""
+        rows = np.full(len(members), -2, dtype=np.int64)
+        gaps = np.full(len(members), np.inf)
+        for j, m in enumerate(members):
+            leader = m.vehicle_ahead
+            if leader is not None:
+                rows[j] = world.index.get(leader.vehicle_id, -2)
+                gaps[j] = leader.gap_m
+        drives = np.fromiter((m.actuator.sumo_drives for m in members), bool, len(members))
+        return rows, gaps, drives
 
     def _entering(
         self, ctx: StepContext, members: list[Member], table: FloatArray, stop_m: FloatArray
