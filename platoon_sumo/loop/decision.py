@@ -28,28 +28,39 @@ def frozen_observation(values: dict[str, object]) -> Observation:
     return obs
 
 
-def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Observation:
-    """What a controller sees: odometry (`kin`, its row of the fleet's state), its route,
-    SUMO's view of the road ahead (read after the previous step) and its sensors' latest
-    messages."""
+def constant_fields(m: Member) -> dict[str, object]:
+    """The fields of `m`'s observations that stay the same for its whole run."""
     cfg = m.platoon.config.vehicle
-    scan = m.sensors.get("laser")
-    return frozen_observation({
-        "time_s": time_s,
-        "dt_s": dt_s,
+    return {
         "vehicle_id": m.id,
         "role": m.plan.role,
-        "x_m": kin[X],
-        "y_m": kin[Y],
-        "yaw_rad": kin[YAW],
-        "speed_mps": kin[SPEED],
         "front_offset_m": cfg.front_offset_m,
         "length_m": cfg.length_m,
         "width_m": cfg.width_m,
         "limits": m.platoon.limits,
+        "on_sumo_lanes": m.actuator.sumo_drives,
+        "platoon_id": m.platoon_id,
+        "index": m.index,
+    }
+
+
+def observation(
+    m: Member, time_s: float, dt_s: float, kin: list[float], constants: dict[str, object]
+) -> Observation:
+    """What a controller sees: odometry (`kin`, its row of the fleet's state), its route,
+    SUMO's view of the road ahead (read after the previous step) and its sensors' latest
+    messages; `constants` are its `constant_fields`."""
+    scan = m.sensors.get("laser")
+    return frozen_observation({
+        **constants,
+        "time_s": time_s,
+        "dt_s": dt_s,
+        "x_m": kin[X],
+        "y_m": kin[Y],
+        "yaw_rad": kin[YAW],
+        "speed_mps": kin[SPEED],
         "path": m.path,
         "lane_offset_m": 0.0 if m.actuator.steers else kin[LATERAL],
-        "on_sumo_lanes": m.actuator.sumo_drives,
         "signal": m.signal,
         "link_ahead": m.link_ahead,
         "lane_change": m.lane_change,
@@ -57,8 +68,6 @@ def observation(m: Member, time_s: float, dt_s: float, kin: list[float]) -> Obse
         "obstacle_ahead": m.obstacle_ahead,
         "scan": scan if isinstance(scan, LaserScan) else None,
         "sensors": dict(m.sensors),
-        "platoon_id": m.platoon_id,
-        "index": m.index,
     })  # fmt: skip
 
 
@@ -73,6 +82,16 @@ def desired_accel(m: Member, command: Command, dt_s: float, speed_mps: float) ->
 
 
 class Decide:
+    def __init__(self) -> None:
+        self._constants: dict[str, tuple[Member, dict[str, object]]] = {}
+        """Each member's `constant_fields`, by id (with the member they were made for)."""
+
+    def _constant_fields(self, m: Member) -> dict[str, object]:
+        known = self._constants.get(m.id)
+        if known is None or known[0] is not m:
+            known = self._constants[m.id] = (m, constant_fields(m))
+        return known[1]
+
     def __call__(self, ctx: StepContext) -> None:
         members = list(ctx.fleet)
         if not members:
@@ -80,7 +99,8 @@ class Decide:
         time_s = ctx.world.time_s
         kin = ctx.fleet.kin[ctx.fleet.rows(members)].tolist()
         observations = [
-            observation(m, time_s, ctx.dt_s, k) for m, k in zip(members, kin, strict=True)
+            observation(m, time_s, ctx.dt_s, k, self._constant_fields(m))
+            for m, k in zip(members, kin, strict=True)
         ]
         commands = step_batch([m.controller for m in members], observations)
         for m, obs, command in zip(members, observations, commands, strict=True):

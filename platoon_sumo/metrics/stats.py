@@ -252,6 +252,7 @@ class RunStats:
         # a follower with a laser but no scan yet (its first step) is not judged; one
         # without a laser never is: its platoon has no intactness (None)
         judged_row = ~has_pred | ~np.isnan(in_view)
+        judged, intact = judged_row.tolist(), intact_row.tolist()  # a few rows a platoon
         for pid, members in groups.items():
             planned = self.planned.get(pid)
             if planned is None:
@@ -263,9 +264,9 @@ class RunStats:
             if len(members) < p.members or len(members) < 2:
                 continue
             p.complete_steps += 1
-            if judged_row[members].all():
+            if all(judged[k] for k in members):
                 p.judged_steps += 1
-                p.intact_steps += int(intact_row[members].all())
+                p.intact_steps += int(all(intact[k] for k in members))
 
     def add_events(self, events: Iterable[Event]) -> None:
         """Count a step's events per vehicle and platoon (the one source of every event
