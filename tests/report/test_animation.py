@@ -65,6 +65,23 @@ def test_scene_rows_are_near_a_platoon_vehicle_at_the_scene_rate(results):
     assert np.allclose(steps, np.round(steps)), "times off the scene period"
 
 
+def test_scene_platoon_rows_agree_with_the_trajectory_table(results):
+    """The scene's platoon rows are where the trajectory table has the members at those
+    times, to the scene's rounding (mm, 1e-4 rad), each member once a scene time. (The
+    speed is SUMO's, which differs from ours where our model drives the car.)"""
+    scene = pd.read_csv(results / "scene.csv", dtype={"vehicle_id": str, "platoon_id": str})
+    ours = scene[scene["platoon_id"].notna()]
+    assert not ours.duplicated(["time_s", "vehicle_id"]).any()
+    table = pd.read_csv(results / "trajectories.csv", dtype={"vehicle_id": str})
+    both = ours.merge(table, on=["time_s", "vehicle_id"], suffixes=("", "_table"))
+    assert len(both) == len(ours), "scene rows missing from the trajectory table"
+    assert (both["member_index"] == both["member_index_table"]).all()
+    for column in ("x_m", "y_m"):
+        assert np.abs(both[column] - both[f"{column}_table"]).max() <= 5e-4 + 1e-9, column
+    turn = np.angle(np.exp(1j * (both["yaw_rad"] - both["yaw_rad_table"])))
+    assert np.abs(turn).max() <= 5e-5 + 1e-9
+
+
 def test_scans_read_back_whole_from_chunks(results):
     scene = read_scene(results)
     traffic = scene.traffic
