@@ -80,7 +80,7 @@ class Progress:
         line = (
             f"t = {record.time_s:8.1f} / {self._end_s:.0f} s ({fraction:4.0%})  "
             f"{rtf:7.1f}x real time  {record.sumo_vehicles:5d} vehicles  "
-            f"{len(record.vehicles):3d} platoon  {self._collisions} collisions"
+            f"{len(record.columns):3d} platoon  {self._collisions} collisions"
         )
         self.stream.write(("\r" + line) if self.tty else line + "\n")
         self.stream.flush()

@@ -30,7 +30,7 @@ from platoon_sumo.loop.context import (
     StepContext,
     StepHook,
     StepRecord,
-    vehicle_records,
+    vehicle_columns,
 )
 from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Arrivals, Departures, InsertDue, RemovedElsewhere
@@ -153,7 +153,7 @@ class CoSimulation:
             footprints=ctx.footprints,
             sensed_world=ctx.sensed_world,
             sensed_footprints=ctx.sensed_footprints,
-            vehicles=vehicle_records(ctx.fleet),
+            columns=vehicle_columns(ctx.fleet),
             events=tuple(ctx.events),
             sumo_vehicles=self.backend.vehicle_count(),
         )

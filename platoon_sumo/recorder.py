@@ -30,7 +30,9 @@ import pyarrow.parquet as pq
 from platoon_sumo.events import EVENT_COLUMNS, event_row
 from platoon_sumo.loop.context import RunContext, RunOutcome, StepHook, StepRecord
 from platoon_sumo.metrics.kernels import (
-    PathTrail,
+    FloatArray,
+    Trails,
+    desired_gap_m,
     jerk_mps3,
     spacing_error_m,
     time_gap_s,
@@ -63,7 +65,7 @@ TRAIL_MAX_POINTS = 5000
 
 class TableWriter:
     """Appends chunks of columns (lists or arrays in the order of `column_types`, by
-    default `TRAJECTORY_COLUMNS`; None for an empty cell) to a CSV or Parquet file,
+    default `TRAJECTORY_COLUMNS`; None or NaN for an empty cell) to a CSV or Parquet file,
     through Arrow: its CSV writer formats a chunk's floats in compiled code (the csv
     module's float formatting, about 0.5 µs a number, was the loop's largest single
     cost); the same shortest round-trip digits, integral floats without ".0", text
@@ -89,7 +91,10 @@ class TableWriter:
         if not columns or not len(columns[0]):
             return
         schema = self._schema
-        arrays = [pa.array(col, type=schema.field(i).type) for i, col in enumerate(columns)]
+        arrays = [
+            pa.array(col, type=schema.field(i).type, from_pandas=True)  # NaN: an empty cell
+            for i, col in enumerate(columns)
+        ]
         table = pa.Table.from_arrays(arrays, schema=schema)
         if self._parquet is not None:
             self._parquet.write_table(table)
@@ -125,7 +130,7 @@ class TrajectoryRecorder(StepHook):
         self.chunk_rows = chunk_rows
         self.writer = TableWriter(path, fmt) if write else None
         self.stats = stats
-        self._steps: list[list[Sequence[Any]]] = []
+        self._steps: list[list[Sequence[Any] | FloatArray]] = []
         """The steps' columns not yet written, a step appended whole in one call: an
         interrupt (Ctrl-C) between the columns once left them of unequal lengths, and
         the end's flush failed and lost every row still in memory."""
@@ -133,7 +138,7 @@ class TrajectoryRecorder(StepHook):
         """How many rows `_steps` holds."""
         self.rows_written = 0
         self._accel: dict[str, float] = {}
-        self._trails: dict[str, PathTrail] = {}
+        self._trails = Trails(TRAIL_MAX_POINTS)
         self._dt_s = 0.0
 
     def on_start(self, run: RunContext) -> None:
@@ -142,133 +147,130 @@ class TrajectoryRecorder(StepHook):
             self.writer.open()
 
     def on_step(self, record: StepRecord) -> None:
-        vehicles = record.vehicles
-        for v in vehicles:  # every trail first, then measure against them
-            trail = self._trails.get(v.id)
-            if trail is None:
-                spacing = TRAIL_SPACING_LENGTHS * v.length_m
-                trail = self._trails[v.id] = PathTrail(spacing, TRAIL_MAX_POINTS)
-            trail.append(v.front_x_m, v.front_y_m)
+        vc = record.columns
+        trails = self._trails  # every trail first, then measure against them
+        trails.append(vc.id, vc.front_x_m, vc.front_y_m, TRAIL_SPACING_LENGTHS * vc.length_m)
         columns = self._columns(record)
-        followed = {v.predecessor_id for v in vehicles}
-        for vid, trail in self._trails.items():
-            if vid not in followed:
-                trail.keep_last(2)  # nobody measures against it: keep only its end
-        present = {v.id for v in vehicles}
-        for gone in set(self._trails) - present:  # arrived: forget (bounded memory)
-            del self._trails[gone]
-            self._accel.pop(gone, None)
+        followed = set(vc.predecessor_id)
+        # nobody measures against these: keep only their end
+        trails.keep_last(2, [vid for vid in trails.ids() if vid not in followed])
+        gone = set(trails.ids()).difference(vc.id)
+        trails.forget(gone)  # arrived: forget (bounded memory)
+        for vid in gone:
+            self._accel.pop(vid, None)
         if self.stats is not None:
             self.stats.add_step(record.time_s, columns)
             self.stats.add_events(record.events)
-            for v in vehicles:
-                inboxes = [m for m in v.sensors.values() if isinstance(m, V2VInbox)]
+            for vid, sensors in zip(vc.id, vc.sensors, strict=True):
+                inboxes = [m for m in sensors.values() if isinstance(m, V2VInbox)]
                 if inboxes:  # several channels: their sums
                     self.stats.add_v2v(
-                        v.id,
+                        vid,
                         sum(i.sent_total for i in inboxes),
                         sum(i.received_total for i in inboxes),
                         sum(i.lost_total for i in inboxes),
                     )
-        if self.writer is not None and vehicles:
+        if self.writer is not None and len(vc):
             if self.rows_written == 0 and not self._steps:
                 assert tuple(columns) == TRAJECTORY_COLUMNS, "columns out of order"
             self._steps.append(list(columns.values()))
-            self._buffered_rows += len(vehicles)
+            self._buffered_rows += len(vc)
             if self._buffered_rows >= self.chunk_rows:
                 self.flush()
 
-    def _columns(self, record: StepRecord) -> dict[str, Sequence[Any]]:
+    def _columns(self, record: StepRecord) -> dict[str, Sequence[Any] | FloatArray]:
         """The step's rows as columns (in `TRAJECTORY_COLUMNS` order; docs/outputs.md
-        defines each): the records' own fields taken in one transpose, the derived ones
-        one list comprehension a column."""
-        vs = record.vehicles
-        if not vs:
+        defines each): numbers as float arrays, NaN for an empty cell (the metrics of
+        `metrics.kernels`, over all vehicles at once), the rest as sequences."""
+        vc = record.columns
+        n = len(vc)
+        if not n:
             return {name: [] for name in TRAJECTORY_COLUMNS}
-        (
-            ids, platoon_ids, member_indices, roles, _, _, yaws, xs, ys, speeds, accels, _,
-            route_s, lateral, lane_widths, commands, executed, supervisor, signals, aheads,
-            pred_ids, gaps, pred_rays, _,
-        ) = zip(*vs, strict=True)  # fmt: skip
+        ids, speeds, pred_ids = vc.id, vc.speed_mps, vc.predecessor_id
+        has_pred = np.array([p is not None for p in pred_ids], dtype=bool)
+        row_of = dict(zip(ids, range(n), strict=True))
+        pred_row = np.array([row_of.get(p or "", -1) for p in pred_ids], dtype=np.intp)
+        pred_speed = np.where(pred_row >= 0, speeds[pred_row], np.nan)
+        gaps = np.array(vc.gap_to_predecessor_m, dtype=np.float64)
+        telemetry = [c.telemetry for c in vc.command]
+        policies = np.array(
+            [
+                (g.standstill_m, g.time_gap_s)
+                if h and t is not None and (g := t.gap_policy) is not None
+                else _NO_POLICY
+                for t, h in zip(telemetry, has_pred.tolist(), strict=True)
+            ],
+            dtype=np.float64,
+        ).reshape(n, 2)
+        desired = desired_gap_m(policies[:, 0], policies[:, 1], speeds)
+        previous = self._accel
+        accels = vc.accel_mps2
+        before = np.array([previous.get(vid, np.nan) for vid in ids], dtype=np.float64)
+        jerk = jerk_mps3(accels, before, self._dt_s)
+        previous.update(zip(ids, accels.tolist(), strict=True))
+        lateral = np.full(n, np.nan)
+        follower = np.flatnonzero(has_pred)
+        lateral[follower] = self._trails.deviation(
+            [pred_ids[k] or "" for k in follower.tolist()],
+            vc.front_x_m[follower],
+            vc.front_y_m[follower],
+        )
+        rays = [
+            r if h else None for r, h in zip(vc.predecessor_rays, has_pred.tolist(), strict=True)
+        ]
         lane_ids, index = record.world.lane_ids, record.world.index
-        speed_of = dict(zip(ids, speeds, strict=True))
-        has_pred = [p is not None for p in pred_ids]
-        pred_speed = [speed_of.get(p or "") for p in pred_ids]
-        telemetry = [c.telemetry for c in commands]
-        desired = [
-            t.gap_policy.desired_m(v) if h and t is not None and t.gap_policy is not None else None
-            for v, t, h in zip(speeds, telemetry, has_pred, strict=True)
-        ]
-        previous_accel = self._accel
-        jerk = [
-            jerk_mps3(a, previous_accel.get(vid), self._dt_s)
-            for vid, a in zip(ids, accels, strict=True)
-        ]
-        previous_accel.update(zip(ids, accels, strict=True))
-        trails = self._trails
-        rays = [r if h else None for r, h in zip(pred_rays, has_pred, strict=True)]
-        time_s = round(record.time_s, 6)
+        tls, state, distance = zip(
+            *[(s.tls_id, s.state, s.distance_m) if s else _NO_SIGNAL for s in vc.signal],
+            strict=True,
+        )
+        ahead_id, ahead_gap = zip(
+            *[(a.vehicle_id, a.gap_m) if a else _NO_AHEAD for a in vc.vehicle_ahead], strict=True
+        )
+        measured = [t.measured_gap_m if t is not None else None for t in telemetry]
         return {
-            "time_s": [time_s] * len(vs),
+            "time_s": np.full(n, round(record.time_s, 6)),
             "vehicle_id": ids,
-            "platoon_id": platoon_ids,
-            "member_index": member_indices,
-            "role": roles,
-            "x_m": xs,
-            "y_m": ys,
-            "yaw_rad": yaws,
+            "platoon_id": vc.platoon_id,
+            "member_index": vc.member_index,
+            "role": vc.role,
+            "x_m": vc.front_x_m,
+            "y_m": vc.front_y_m,
+            "yaw_rad": vc.yaw_rad,
             "speed_mps": speeds,
             "accel_mps2": accels,
             "jerk_mps3": jerk,
-            "cmd_speed_mps": [_finite(c.speed_mps) for c in commands],
-            "cmd_yaw_rate_radps": [c.yaw_rate_radps for c in commands],
-            "cmd_heading_rad": [c.heading_rad for c in commands],
-            "executed_speed_mps": [_finite(c.speed_mps) for c in executed],
-            "route_s_m": route_s,
-            "lateral_offset_m": lateral,
-            "lane_width_m": lane_widths,
+            "cmd_speed_mps": _finite([c.speed_mps for c in vc.command]),
+            "cmd_yaw_rate_radps": _floats([c.yaw_rate_radps for c in vc.command]),
+            "cmd_heading_rad": _floats([c.heading_rad for c in vc.command]),
+            "executed_speed_mps": _finite([c.speed_mps for c in vc.executed]),
+            "route_s_m": vc.route_s_m,
+            "lateral_offset_m": vc.lateral_offset_m,
+            "lane_width_m": vc.lane_width_m,
             "lane_id": [lane_ids[i] if (i := index.get(vid)) is not None else None for vid in ids],
-            "signal_tls": [s.tls_id if s else None for s in signals],
-            "signal_state": [s.state if s else None for s in signals],
-            "signal_distance_m": [s.distance_m if s else None for s in signals],
-            "ahead_id": [a.vehicle_id if a else None for a in aheads],
-            "ahead_gap_m": [a.gap_m if a else None for a in aheads],
+            "signal_tls": tls,
+            "signal_state": state,
+            "signal_distance_m": _floats(distance),
+            "ahead_id": ahead_id,
+            "ahead_gap_m": _floats(ahead_gap),
             "predecessor_id": pred_ids,
             "predecessor_speed_mps": pred_speed,
             "gap_to_predecessor_m": gaps,
-            "measured_gap_m": [
-                t.measured_gap_m if h and t is not None else None
-                for t, h in zip(telemetry, has_pred, strict=True)
-            ],
+            "measured_gap_m": np.where(has_pred, _floats(measured), np.nan),
             "desired_gap_m": desired,
-            "spacing_error_m": [spacing_error_m(g, d) for g, d in zip(gaps, desired, strict=True)],
-            "time_gap_s": [
-                time_gap_s(g, v) if h else None
-                for g, v, h in zip(gaps, speeds, has_pred, strict=True)
-            ],
-            "ttc_s": [
-                time_to_collision_s(g, v, p)
-                for g, v, p in zip(gaps, speeds, pred_speed, strict=True)
-            ],
-            "lateral_deviation_m": [
-                trail.deviation(x, y)
-                if h and (trail := trails.get(p)) is not None
-                else None
-                for x, y, p, h in zip(xs, ys, pred_ids, has_pred, strict=True)
-            ],
+            "spacing_error_m": spacing_error_m(gaps, desired),
+            "time_gap_s": np.where(has_pred, time_gap_s(gaps, speeds), np.nan),
+            "ttc_s": time_to_collision_s(gaps, speeds, pred_speed),
+            "lateral_deviation_m": lateral,
             "predecessor_rays": rays,
             "predecessor_in_view": [int(r > 0) if r is not None else None for r in rays],
-            "supervisor": [s or None for s in supervisor],
+            "supervisor": [s or None for s in vc.supervisor_state],
             "controller_mode": [t.mode or None if t is not None else None for t in telemetry],
         }  # fmt: skip
 
     def flush(self) -> None:
         steps = self._steps
         if steps and self.writer is not None:
-            columns = [
-                list(itertools.chain.from_iterable(step[k] for step in steps))
-                for k in range(len(TRAJECTORY_COLUMNS))
-            ]
+            columns = [_joined([step[k] for step in steps]) for k in range(len(TRAJECTORY_COLUMNS))]
             self.writer.write(columns)
             self.rows_written += len(columns[0])
             self._steps, self._buffered_rows = [], 0
@@ -302,8 +304,28 @@ class EventWriter(StepHook):
             self._file = None
 
 
-def _finite(value: float) -> float | None:
-    return value if math.isfinite(value) else None
+_NO_POLICY = (math.nan, math.nan)
+_NO_SIGNAL = (None, None, None)
+_NO_AHEAD = (None, None)
+
+
+def _floats(values: Sequence[float | None]) -> FloatArray:
+    """A float array, NaN (an empty cell) for None."""
+    return np.array(values, dtype=np.float64)
+
+
+def _finite(values: Sequence[float]) -> FloatArray:
+    """A float array, NaN (an empty cell) where a value is not finite."""
+    out = _floats(values)
+    out[~np.isfinite(out)] = np.nan
+    return out
+
+
+def _joined(parts: Sequence[Sequence[Any] | FloatArray]) -> Sequence[Any] | FloatArray:
+    """One column from its steps' pieces (arrays joined as an array)."""
+    if isinstance(parts[0], np.ndarray):
+        return np.concatenate(parts)
+    return list(itertools.chain.from_iterable(parts))
 
 
 @dataclass(frozen=True)
@@ -342,27 +364,30 @@ class ScanSnapshot(StepHook):
         sensed, rects_seen = record.sensed_world, record.sensed_footprints
         if self.frozen or sensed is None or rects_seen is None:
             return
-        candidates = [v for v in record.vehicles if v.scan is not None]
+        vc = record.columns
+        candidates = [k for k, scan in enumerate(vc.scans) if scan is not None]
         if self.vehicle_id is not None:
-            candidates = [v for v in candidates if v.id == self.vehicle_id]
+            candidates = [k for k in candidates if vc.id[k] == self.vehicle_id]
         else:
-            candidates.sort(key=lambda v: (v.member_index != 1, v.member_index, v.id))
+            index = vc.member_index
+            candidates.sort(key=lambda k: (index[k] != 1, index[k], vc.id[k]))
         if not candidates:
             return
-        v = candidates[0]
+        k = candidates[0]
+        vid = vc.id[k]
         if self.vehicle_id is None:
-            self.vehicle_id = v.id
-        scan = v.scan
+            self.vehicle_id = vid
+        scan = vc.scans[k]
         if scan is None or abs(scan.stamp_s - sensed.time_s) > 1e-9:
             return  # not a new scan of this step
-        pred = v.predecessor_id
-        marks = _Marks(v.id, sensed.index.get(v.id), pred, sensed.index.get(pred or ""))
+        pred = vc.predecessor_id[k]
+        marks = _Marks(vid, sensed.index.get(vid), pred, sensed.index.get(pred or ""))
         rects = rects_seen
         if self.at_s is not None:
             self._kept = [(0, scan, rects, marks)]
             self.frozen = record.time_s >= self.at_s
             return
-        if not v.predecessor_rays:
+        if not vc.predecessor_rays[k]:
             return
         self._count += 1
         if self._count & (self._count - 1) == 0:  # a power of two

@@ -82,21 +82,20 @@ class SceneRecorder(StepHook):
 
     def on_step(self, record: StepRecord) -> None:
         self._step += 1
-        if self._step % self._every_steps or not record.vehicles:
+        vc = record.columns
+        if self._step % self._every_steps or not len(vc):
             return
         world = record.world
-        px = np.array([v.front_x_m for v in record.vehicles])
-        py = np.array([v.front_y_m for v in record.vehicles])
-        dx = world.front_x_m[:, None] - px[None, :]
-        dy = world.front_y_m[:, None] - py[None, :]
+        dx = world.front_x_m[:, None] - vc.front_x_m[None, :]
+        dy = world.front_y_m[:, None] - vc.front_y_m[None, :]
         near = np.flatnonzero(np.hypot(dx, dy).min(axis=1, initial=np.inf) <= self.radius_m)
         ids = [world.ids[i] for i in near.tolist()]
-        ours = {v.id: v for v in record.vehicles}
+        ours = dict(zip(vc.id, range(len(vc)), strict=True))
         members = [ours.get(vid) for vid in ids]
         self._times.append((round(record.time_s, 6), len(ids)))
         self._ids.extend(ids)
-        self._platoons.extend(m.platoon_id if m else None for m in members)
-        self._indices.extend(m.member_index if m else None for m in members)
+        self._platoons.extend(vc.platoon_id[k] if k is not None else None for k in members)
+        self._indices.extend(vc.member_index[k] if k is not None else None for k in members)
         self._values.append(
             np.stack([
                 world.front_x_m[near], world.front_y_m[near], world.yaw_rad[near],
@@ -104,15 +103,16 @@ class SceneRecorder(StepHook):
             ])
         )  # fmt: skip
         time_s = self._times[-1][0]
-        for v in record.vehicles:
-            scan = v.scan
+        for vid, platoon_id, member_index, scan in zip(
+            vc.id, vc.platoon_id, vc.member_index, vc.scans, strict=True
+        ):
             if scan is None:
                 continue
-            k = self._lasers.get(v.id)
+            k = self._lasers.get(vid)
             if k is None:
-                k = self._lasers[v.id] = len(self._meta)
+                k = self._lasers[vid] = len(self._meta)
                 self._meta.append({
-                    "vehicle_id": v.id, "platoon_id": v.platoon_id, "member_index": v.member_index,
+                    "vehicle_id": vid, "platoon_id": platoon_id, "member_index": member_index,
                     "angle_min": scan.angle_min, "angle_increment": scan.angle_increment,
                     "range_min": scan.range_min, "range_max": scan.range_max,
                 })  # fmt: skip

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, NamedTuple, Protocol
 
 import numpy as np
@@ -157,25 +158,93 @@ class VehicleRecord(NamedTuple):
         return self.command.telemetry
 
 
-def vehicle_records(fleet: Fleet) -> tuple[VehicleRecord, ...]:
-    """Every member's record, in the fleet's order."""
+#: `VehicleRecord`'s fields held as float arrays in `VehicleColumns`.
+NUMERIC_FIELDS = (
+    "x_m", "y_m", "yaw_rad", "front_x_m", "front_y_m", "speed_mps", "accel_mps2", "length_m",
+    "route_s_m", "lateral_offset_m", "lane_width_m",
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class VehicleColumns:
+    """The step's platoon vehicles as columns, in the fleet's order: `VehicleRecord`'s
+    fields, one entry per vehicle, the numbers (`NUMERIC_FIELDS`) as float arrays. Built
+    once a step from the fleet's state array; recorders read it without a Python object
+    per vehicle, and `records()` gives the same data as rows."""
+
+    id: tuple[str, ...]
+    platoon_id: tuple[str, ...]
+    member_index: tuple[int, ...]
+    role: tuple[str, ...]
+    x_m: FloatArray
+    y_m: FloatArray
+    yaw_rad: FloatArray
+    front_x_m: FloatArray
+    front_y_m: FloatArray
+    speed_mps: FloatArray
+    accel_mps2: FloatArray
+    length_m: FloatArray
+    route_s_m: FloatArray
+    lateral_offset_m: FloatArray
+    lane_width_m: FloatArray
+    command: tuple[Command, ...]
+    executed: tuple[Command, ...]
+    supervisor_state: tuple[str, ...]
+    signal: tuple[SignalAhead | None, ...]
+    vehicle_ahead: tuple[VehicleAhead | None, ...]
+    predecessor_id: tuple[str | None, ...]
+    gap_to_predecessor_m: tuple[float | None, ...]
+    predecessor_rays: tuple[int | None, ...]
+    sensors: tuple[Mapping[str, Any], ...]
+
+    def __len__(self) -> int:
+        return len(self.id)
+
+    @cached_property
+    def scans(self) -> tuple[LaserScan | None, ...]:
+        """Each vehicle's latest laser scan (`VehicleRecord.scan`), or None."""
+        return tuple(
+            scan if isinstance(scan := sensors.get("laser"), LaserScan) else None
+            for sensors in self.sensors
+        )
+
+    def records(self) -> tuple[VehicleRecord, ...]:
+        """The same vehicles as `VehicleRecord`s (numbers as Python floats)."""
+        fields = [
+            getattr(self, name).tolist() if name in NUMERIC_FIELDS else getattr(self, name)
+            for name in VehicleRecord._fields
+        ]
+        return tuple(map(VehicleRecord, *fields))
+
+
+def vehicle_columns(fleet: Fleet) -> VehicleColumns:
+    """Every member's record as columns, in the fleet's order."""
     members = list(fleet)
-    kin = fleet.kin[fleet.rows(members)].tolist()
-    return tuple(vehicle_record(m, k) for m, k in zip(members, kin, strict=True))
-
-
-def vehicle_record(m: Member, kin: list[float]) -> VehicleRecord:
-    """`m`'s record; `kin` is its row of the fleet's state."""
-    x, y, yaw, route_s = kin[X], kin[Y], kin[YAW], kin[ROUTE_S]
-    off = kin[FRONT_OFFSET]
-    path = m.path
-    i = min(int(route_s // path.spacing_m), len(path.lane_width_m) - 1)
-    return VehicleRecord(
-        m.id, m.platoon_id, m.index, m.plan.role, x, y, yaw, x + off * math.cos(yaw),
-        y + off * math.sin(yaw), kin[SPEED], kin[ACCEL], m.platoon.config.vehicle.length_m,
-        route_s, kin[LATERAL], float(path.lane_width_m[max(i, 0)]), m.command, m.executed,
-        m.supervisor_state, m.signal, m.vehicle_ahead, m.predecessor_id,
-        m.gap_to_predecessor_m, m.predecessor_rays, dict(m.sensors),
+    kin = fleet.kin[fleet.rows(members)]
+    x, y, yaw, off, route_s = (kin[:, c] for c in (X, Y, YAW, FRONT_OFFSET, ROUTE_S))
+    # the front bumper with `math`'s cos and sin, as `Member.front_bumper` has it
+    poses = zip(x.tolist(), y.tolist(), yaw.tolist(), off.tolist(), strict=True)
+    front = [(a + o * math.cos(w), b + o * math.sin(w)) for a, b, w, o in poses]
+    front_x, front_y = np.array(front, dtype=np.float64).reshape(-1, 2).T
+    rows = [
+        (
+            m.id, m.platoon_id, m.index, m.plan.role, m.platoon.config.vehicle.length_m,
+            m.path.lane_width_near(s), m.command, m.executed, m.supervisor_state, m.signal,
+            m.vehicle_ahead, m.predecessor_id, m.gap_to_predecessor_m, m.predecessor_rays,
+            dict(m.sensors),
+        )
+        for m, s in zip(members, route_s.tolist(), strict=True)
+    ]  # fmt: skip
+    (
+        ids, platoons, indices, roles, lengths, widths, commands, executed, supervisor,
+        signals, aheads, predecessors, gaps, rays, sensors,
+    ) = tuple(zip(*rows, strict=True)) if rows else ((),) * 15  # fmt: skip
+    return VehicleColumns(
+        ids, platoons, indices, roles, x.copy(), y.copy(), yaw.copy(), front_x.copy(),
+        front_y.copy(), kin[:, SPEED].copy(), kin[:, ACCEL].copy(),
+        np.array(lengths, dtype=np.float64), route_s.copy(), kin[:, LATERAL].copy(),
+        np.array(widths, dtype=np.float64), commands, executed, supervisor, signals, aheads,
+        predecessors, gaps, rays, sensors,
     )  # fmt: skip
 
 
@@ -191,10 +260,17 @@ class StepRecord:
     sensed_world: WorldSnapshot | None
     """The world this step's sensors observed (read after the previous SUMO step)."""
     sensed_footprints: FloatArray | None
-    vehicles: tuple[VehicleRecord, ...]
+    columns: VehicleColumns
+    """The platoon vehicles after the step, as columns."""
     events: tuple[Event, ...]
     sumo_vehicles: int
     """Vehicles in the whole network after the step (platoon vehicles included)."""
+
+    @cached_property
+    def vehicles(self) -> tuple[VehicleRecord, ...]:
+        """The platoon vehicles after the step, a record each (built when first asked
+        for, from `columns`)."""
+        return self.columns.records()
 
     def of_kind(self, *kinds: EventKind) -> list[Event]:
         return [e for e in self.events if e.kind in kinds]

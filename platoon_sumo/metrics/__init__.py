@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
-from platoon_sumo.metrics.kernels import PathTrail
+from platoon_sumo.metrics.kernels import Trails
 from platoon_sumo.metrics.stats import RunStats, given, table_steps
 
 __all__ = ["RunStats", "follower_metrics", "read_events", "summarise_trajectories"]
@@ -40,19 +40,16 @@ def summarise_trajectories(
     predecessor's path as the recorder does (every position kept).
     """
     replay = "lateral_deviation_m" not in trajectories.columns
-    trails: dict[str, PathTrail] = {}
+    trails = Trails()
     stats = RunStats(planned, start_s, limits)
     for time_s, columns in table_steps(trajectories):
         if replay:
             xs, ys = columns["x_m"].astype(float), columns["y_m"].astype(float)
-            for vid, x, y in zip(columns["vehicle_id"], xs, ys, strict=True):
-                trails.setdefault(str(vid), PathTrail(0.0)).append(float(x), float(y))
-            deviation = []
-            for pred, x, y in zip(columns.get("predecessor_id", [None] * len(xs)), xs, ys,
-                                  strict=True):  # fmt: skip
-                trail = trails.get(str(pred)) if given(pred) else None
-                deviation.append(trail.deviation(float(x), float(y)) if trail else None)
-            columns["lateral_deviation_m"] = np.array(deviation, dtype=np.float64)
+            ids = [str(vid) for vid in columns["vehicle_id"]]
+            trails.append(ids, xs, ys, np.zeros(len(ids)))
+            preds = columns.get("predecessor_id", [None] * len(xs))
+            of = [str(p) if given(p) else "" for p in preds]
+            columns["lateral_deviation_m"] = trails.deviation(of, xs, ys)
         stats.add_step(time_s, columns)
     if events is not None:
         stats.add_events(read_events(events))
