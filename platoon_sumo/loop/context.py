@@ -6,9 +6,9 @@ controller sees is in the order of the stages (`cosim.py`): sensing and decision
 the world read after the previous SUMO step; everything after the SUMO step reads the
 new one.
 
-Hooks get a frozen `RunContext` at the start, a `StepRecord` (immutable vehicle
-records, footprints, events) every step and a `RunOutcome` at the end, always, even
-when the run fails.
+Hooks get a frozen `RunContext` at the start, a `StepRecord` (the platoon vehicles
+as columns and, when asked for, as immutable records; footprints, events) every step
+and a `RunOutcome` at the end, always, even when the run fails.
 """
 
 from __future__ import annotations

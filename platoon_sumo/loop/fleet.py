@@ -4,8 +4,8 @@ Their kinematic state lives in one array (`Fleet.kin`, a row per vehicle, a colu
 quantity), so stages work on all vehicles at once (`Fleet.rows`, `Fleet.column`);
 `Member` holds what is per vehicle by nature (its plan, controller, actuator, route,
 messages) and reads and writes its row through properties. Stages read and write
-members only through the step context; hooks never see them (they get frozen
-`VehicleRecord`s). `Fleet.remove` is the one way out of the run.
+members only through the step context; hooks never see them (they get the step's
+`VehicleColumns` and `VehicleRecord`s). `Fleet.remove` is the one way out of the run.
 """
 
 from __future__ import annotations

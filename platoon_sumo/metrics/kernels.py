@@ -101,6 +101,8 @@ class Trails:
     ) -> None:
         """Record each vehicle's position if it is at least its spacing from its last
         kept point (`spacing_m` is read for vehicles new to the trails only)."""
+        if not len(ids):
+            return
         slots = np.array([self._slot_of(vid, s) for vid, s in zip(ids, spacing_m, strict=True)],
                          dtype=np.int64)  # fmt: skip
         rows = self._buf.shape[1]

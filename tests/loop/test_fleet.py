@@ -8,7 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from platoon_sumo.control import Command
+from platoon_sumo.loop.context import vehicle_columns
 from platoon_sumo.loop.fleet import KINEMATICS, Fleet
+from platoon_sumo.path import RoutePath
 from tests.loop.test_stages import plan
 
 
@@ -43,3 +46,48 @@ def test_members_read_and_write_their_rows(write_scenario):
     assert members[2].x_m == pytest.approx(fx[2] + 1.0 - offset * math.cos(-1.0))
     newcomer = fleet.join(platoon.members[0], platoon, None, None, None)  # type: ignore[arg-type]
     assert newcomer.row == 3 and newcomer.x_m == 0.0  # rows are never reused
+
+
+def test_a_steps_columns_hold_each_members_own_values(write_scenario):
+    """`VehicleColumns` (what recorders read) and the records made from it carry, for
+    every member in the fleet's order, exactly what the member itself says."""
+    run_plan = plan(write_scenario, members=3)
+    platoon = run_plan.platoons[0]
+    path = RoutePath.from_pieces(
+        [np.array([[0.0, 0.0], [50.0, 0.0]]), np.array([[50.0, 0.0], [90.0, 10.0]])],
+        ["a_0", "b_0"], [13.9, 8.0], [3.2, 2.9], 0.5,
+    )  # fmt: skip
+    fleet = Fleet()
+    members = [fleet.join(mp, platoon, None, None, path) for mp in platoon.members]  # type: ignore[arg-type]
+    for k, m in enumerate(members):
+        m.x_m, m.y_m, m.yaw_rad, m.speed_mps, m.accel_mps2 = 20.0 * k, 0.1 * k, 0.2 * k, 7.0 + k, -k
+        m.route_s_m, m.lateral_offset_m = 35.0 * k, 0.05 * k
+        m.command = Command(3.0 + k, heading_rad=0.1 * k if k else None)
+        m.predecessor_id = members[k - 1].id if k else None
+        m.gap_to_predecessor_m = 4.0 + k if k else None
+        m.predecessor_rays = 12 * k if k else None
+        m.sensors = {"laser": f"scan {k}"}
+        m.supervisor_state = "emergency" if k == 2 else ""
+    fleet.remove(members[1].id)  # the columns follow the fleet's order after a removal
+    present = [members[0], members[2]]
+    columns = vehicle_columns(fleet)
+    assert len(columns) == 2 and columns.id == tuple(m.id for m in present)
+    for record, m in zip(columns.records(), present, strict=True):
+        assert (record.front_x_m, record.front_y_m) == m.front_bumper()
+        assert record.lane_width_m == path.lane_width_near(m.route_s_m)
+        assert record.lane_width_m == (2.9 if m.route_s_m > 50.0 else 3.2)
+        assert (record.x_m, record.y_m, record.yaw_rad, record.speed_mps, record.accel_mps2) == (
+            m.x_m, m.y_m, m.yaw_rad, m.speed_mps, m.accel_mps2,
+        )  # fmt: skip
+        assert (record.route_s_m, record.lateral_offset_m) == (m.route_s_m, m.lateral_offset_m)
+        assert record.command is m.command and record.supervisor_state == m.supervisor_state
+        assert (record.predecessor_id, record.gap_to_predecessor_m, record.predecessor_rays) == (
+            m.predecessor_id, m.gap_to_predecessor_m, m.predecessor_rays,
+        )  # fmt: skip
+        assert record.sensors == m.sensors and record.sensors is not m.sensors  # a copy
+        assert record.length_m == platoon.config.vehicle.length_m
+        assert (record.id, record.platoon_id, record.member_index, record.role) == (
+            m.id, m.platoon_id, m.index, m.plan.role,
+        )  # fmt: skip
+        assert all(type(value) is float for value in record[4:15])
+    assert vehicle_columns(Fleet()).records() == ()
