@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from platoon_sumo.events import Event, EventKind
-from platoon_sumo.kernels.series import add_to_series
+from platoon_sumo.kernels.series import FOLD_COLUMNS, FOLD_VALUES, fold_step
 from platoon_sumo.metrics.kernels import l2_gain
 from platoon_sumo.metrics.string_stability import MIN_INPUT_SHARE, assess
 
@@ -54,6 +54,23 @@ AT_LIMIT_TOLERANCE = 1e-3
 
 def _series(name: str) -> int:
     return 4 * SERIES.index(name)
+
+
+_FOLD_KEYS = ("gap_to_predecessor_m", "accel_mps2", "speed_mps", "jerk_mps3", "desired_gap_m",
+              "spacing_error_m", "ttc_s", "time_gap_s", "lateral_deviation_m",
+              "measured_gap_m")  # fmt: skip
+"""The trajectory column of each of `fold_step`'s values but the last (in view: `_in_view`)."""
+_STATE_COLUMNS = {
+    "rows": _ROWS, "first_t": _FIRST_T, "last_t": _LAST_T, "previous_gap": _PREVIOUS_GAP,
+    "steps": _STEPS, "has_pred": _HAS_PRED, "following": _FOLLOWING, "saturated": _SATURATED,
+    "max_accel": _MAX_ACCEL, "max_decel": _MAX_DECEL, "max_speed": _MAX_SPEED,
+    "scans": _SCANS, "seen": _SEEN, "view": _VIEW, "in_view": _IN_VIEW, "pair": _PAIR,
+}  # fmt: skip
+_FOLD_STATE_COLUMNS = np.array(
+    [_STATE_COLUMNS[c] if c in _STATE_COLUMNS else _series(c) for c in FOLD_COLUMNS],
+    dtype=np.int64,
+)
+assert len(_FOLD_KEYS) + 1 == len(FOLD_VALUES) and FOLD_VALUES[-1] == "in_view"
 
 
 def _floats(columns: Columns, key: str, n: int) -> np.ndarray:
@@ -157,10 +174,6 @@ class RunStats:
             row,
         )  # fmt: skip
 
-    def _add(self, name: str, rows: np.ndarray, x: np.ndarray) -> None:
-        """One value per vehicle into the series `name`; NaN values are skipped."""
-        add_to_series(self._state, rows, x, _series(name))
-
     def add_step(self, time_s: float, columns: Columns) -> None:
         """Fold in one step: every column one value per vehicle (each vehicle once)."""
         ids = [str(v) for v in columns["vehicle_id"]]
@@ -170,76 +183,27 @@ class RunStats:
         if len(set(ids)) != n:
             raise ValueError(f"a vehicle has more than one row at t={time_s}")
         rows = self._rows(ids, columns)
-        state = self._state
-        state[rows, _ROWS] += 1
-        first = state[rows, _FIRST_T]
-        state[rows, _FIRST_T] = np.where(np.isnan(first), time_s, first)
-        state[rows, _LAST_T] = time_s
-        gap = _floats(columns, "gap_to_predecessor_m", n)
-        previous_gap = state[rows, _PREVIOUS_GAP]
-        state[rows, _PREVIOUS_GAP] = gap
-        if time_s < self.start_s - 1e-9:
-            return
-        state[rows, _STEPS] += 1
-        accel = _floats(columns, "accel_mps2", n)
-        self._add("accel", rows, accel)
-        self._add("jerk", rows, _floats(columns, "jerk_mps3", n))
         pred_ids = columns.get("predecessor_id", [None] * n)
         has_pred = np.fromiter((given(p) for p in pred_ids), dtype=bool, count=n)
         in_view = _in_view(columns, n)
-        if has_pred.any():
-            self._follower_step(columns, ids, rows, has_pred, gap, previous_gap, accel, in_view)
-        self._platoon_step(columns, n, has_pred, in_view)
-
-    def _follower_step(
-        self, columns: Columns, ids: list[str], rows: np.ndarray, has_pred: np.ndarray,
-        gap: np.ndarray, previous_gap: np.ndarray, accel: np.ndarray, in_view: np.ndarray,
-    ) -> None:  # fmt: skip
-        """The series of the vehicles with a predecessor."""
-        n = len(ids)
-        state = self._state
-        r = rows[has_pred]
-        state[r, _HAS_PRED] = 1.0
-        desired = _floats(columns, "desired_gap_m", n)
-        error = _floats(columns, "spacing_error_m", n)
-        error = np.where(np.isnan(error), gap - desired, error)  # NaN if either is missing
-        self._add("spacing_error", r, error[has_pred])
-        self._add("gap", r, gap[has_pred])
-        for name, key in (("ttc", "ttc_s"), ("time_gap", "time_gap_s"),
-                          ("lateral", "lateral_deviation_m")):  # fmt: skip
-            self._add(name, r, _floats(columns, key, n)[has_pred])
-        measured = _floats(columns, "measured_gap_m", n)
-        self._add("gap_measurement_error", r, (measured - previous_gap)[has_pred])
-        speed = _floats(columns, "speed_mps", n)
-        state[r, _FOLLOWING] += 1.0
-        supervisor = columns.get("supervisor", [None] * n)
-        overridden = np.fromiter((given(s) for s, h in zip(supervisor, has_pred, strict=True)
-                                  if h), dtype=bool, count=len(r))  # fmt: skip
-        limits = state[np.ix_(r, _LIMITS)]
-        state[r, _SATURATED] += overridden | _at_limits(accel[has_pred], speed[has_pred], limits)
-        view = in_view[has_pred]
-        known = ~np.isnan(view)
-        rk, saw = r[known], view[known] > 0.0
-        state[rk, _SCANS] += 1.0
-        seen = (state[rk, _SEEN] > 0.0) | saw
-        state[rk, _SEEN] = seen
-        state[rk[seen], _VIEW] += 1.0
-        state[rk[seen], _IN_VIEW] += saw[seen]
-        # the follower-predecessor pair, both in this step
-        at = {vid: k for k, vid in enumerate(ids)}
-        pred_ids = columns["predecessor_id"]
-        pred = np.fromiter(
-            (at.get(str(p), -1) if h else -1 for p, h in zip(pred_ids, has_pred, strict=True)),
-            dtype=np.intp, count=n,
+        in_window = time_s >= self.start_s - 1e-9
+        if in_window:
+            at = {vid: k for k, vid in enumerate(ids)}
+            pred = np.fromiter(
+                (at.get(str(p), -1) if h else -1 for p, h in zip(pred_ids, has_pred, strict=True)),
+                dtype=np.intp, count=n,
+            )  # fmt: skip
+            supervisor = columns.get("supervisor", [None] * n)
+            overridden = np.fromiter(map(given, supervisor), dtype=bool, count=n)
+        else:
+            pred, overridden = np.full(n, -1, dtype=np.intp), np.zeros(n, dtype=bool)
+        values = np.stack([_floats(columns, key, n) for key in _FOLD_KEYS] + [in_view])
+        fold_step(
+            self._state, rows, time_s, in_window, has_pred, pred, overridden, values,
+            _FOLD_STATE_COLUMNS, AT_LIMIT_TOLERANCE,
         )  # fmt: skip
-        both = pred >= 0
-        k = np.flatnonzero(both)
-        pa, ps = accel[pred[k]], speed[pred[k]]
-        ok = ~(np.isnan(accel[k]) | np.isnan(speed[k]) | np.isnan(pa) | np.isnan(ps))
-        k, pa, ps = k[ok], pa[ok], ps[ok]
-        a, v, rows_k = accel[k], speed[k], rows[k]
-        for offset, value in enumerate((1.0, a * a, pa * pa, v, v * v, ps, ps * ps)):
-            state[rows_k, _PAIR + offset] += value
+        if in_window:
+            self._platoon_step(columns, n, has_pred, in_view)
 
     def _platoon_step(
         self, columns: Columns, n: int, has_pred: np.ndarray, in_view: np.ndarray
@@ -413,14 +377,6 @@ def _pair_gains(pair: list[float]) -> dict[str, float | None]:
         "speed_l2_gain": l2_gain(own, pred),
         "predecessor_speed_std_mps": math.sqrt(pred / n),
     }
-
-
-def _at_limits(accel: np.ndarray, speed: np.ndarray, limits: np.ndarray) -> np.ndarray:
-    """Where vehicles drive at their limits (`limits` rows: max acceleration, max
-    deceleration, max speed); NaN values are not."""
-    tol = AT_LIMIT_TOLERANCE
-    max_accel, max_decel, max_speed = limits.T
-    return (accel >= max_accel - tol) | (accel <= tol - max_decel) | (speed >= max_speed - tol)
 
 
 def _in_view(columns: Columns, n: int) -> np.ndarray:
