@@ -11,7 +11,8 @@ A step is a fixed sequence of stages (`platoon_sumo.loop`) sharing one `StepCont
   then every hook gets the step's immutable record.
 
 docs/design.md walks through each stage. Stages exchange data through the context only,
-so each can be tested alone on a fake backend.
+so each can be tested alone on a fake backend. Given a `StageTimings`, the loop laps the
+CPU clock after each stage, SUMO's step, the record and each hook (`--timings`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from platoon_sumo.loop.progress import RouteProgress
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
 from platoon_sumo.loop.standoff import Standoffs
+from platoon_sumo.loop.timing import AFTER_SUMO, BEFORE_SUMO, HOOK, RECORD, SUMO, StageTimings
 from platoon_sumo.scenario import PlatoonPlan, RunPlan
 
 FloatArray = NDArray[np.float64]
@@ -75,6 +77,7 @@ class CoSimulation:
         hooks: Sequence[StepHook] = (),
         rng: np.random.Generator | None = None,
         static_segments: FloatArray | None = None,
+        timings: StageTimings | None = None,
     ):
         sim = plan.scenario.simulation
         self.run_context = RunContext(plan, sim.step_s, sim.begin_s, sim.end_s, static_segments)
@@ -90,6 +93,8 @@ class CoSimulation:
         )
         self.events: list[Event] = []
         """Every event of the run so far, in order."""
+        self.timings = timings
+        """The CPU time of each stage, SUMO's step and each hook, when asked for."""
 
     @property
     def end_s(self) -> float:
@@ -138,14 +143,16 @@ class CoSimulation:
             raise first
 
     def step(self) -> StepRecord:
-        ctx = self.ctx
+        ctx, timings = self.ctx, self.timings
         ctx.events = []
-        for stage in self.before_sumo:
-            stage(ctx)
+        if timings is not None:
+            timings.start()
+        _run_stages(self.before_sumo, ctx, timings, BEFORE_SUMO)
         self.backend.step()
         ctx.steps += 1
-        for stage in self.after_sumo:
-            stage(ctx)
+        if timings is not None:
+            timings.lap("SUMO step", SUMO)
+        _run_stages(self.after_sumo, ctx, timings, AFTER_SUMO)
         self.events.extend(ctx.events)
         record = StepRecord(
             time_s=ctx.world.time_s,
@@ -157,6 +164,22 @@ class CoSimulation:
             events=tuple(ctx.events),
             sumo_vehicles=self.backend.vehicle_count(),
         )
+        if timings is None:
+            for hook in self.hooks:
+                hook.on_step(record)
+            return record
+        timings.lap("step record", RECORD)
         for hook in self.hooks:
             hook.on_step(record)
+            timings.lap(type(hook).__name__, HOOK)
+        timings.end_step(len(record.columns))
         return record
+
+
+def _run_stages(
+    stages: Sequence[Stage], ctx: StepContext, timings: StageTimings | None, kind: str
+) -> None:
+    for stage in stages:
+        stage(ctx)
+        if timings is not None:
+            timings.lap(type(stage).__name__, kind)

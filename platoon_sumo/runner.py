@@ -29,6 +29,7 @@ from platoon_sumo.errors import ScenarioError
 from platoon_sumo.events import WALL, Event, EventKind, count, of_kind
 from platoon_sumo.live_view import LiveView, LiveViewOptions
 from platoon_sumo.loop.context import StepHook
+from platoon_sumo.loop.timing import OUTSIDE, StageTimings
 from platoon_sumo.metrics import RunStats
 from platoon_sumo.metrics.sumo_outputs import (
     EDGEDATA_FILE,
@@ -54,13 +55,15 @@ from platoon_sumo.sumo.backend import (
 from platoon_sumo.sumo.shapes import read_wall_segments
 from platoon_sumo.traffic import write_traffic_inputs
 
+#: CPU time of each part of the loop (`run(timings=True)`, `platoon-sumo run --timings`).
+TIMINGS_FILE = "timings.csv"
 #: Every name a run writes at the top of its folder (its report included): a file of the
 #: user's under one of these names keeps the run out of the folder.
 OUTPUT_NAMES = frozenset({
     "summary.json", "FAILED.txt", "scenario.yaml", "trajectories.csv", "trajectories.parquet",
     "tripinfo.csv", "sumo_statistics.xml", "vehicles.csv", "platoons.csv", SUMO_SUMMARY_FILE,
     EDGEDATA_FILE, PERSONINFO_FILE, "scan_snapshot.npz", "events.csv", "inputs", "report",
-    SCENE_FILE, SCANS_FILE,
+    SCENE_FILE, SCANS_FILE, TIMINGS_FILE,
 })  # fmt: skip
 
 
@@ -118,12 +121,14 @@ def run(
     hooks: Sequence[StepHook] = (),
     force: bool = False,
     live_view: LiveViewOptions | None = None,
+    timings: bool = False,
 ) -> RunResult:
     """Run `plan` into a results folder that is new, empty or holds our earlier results
     (`results.claim`; `force` replaces earlier results that were edited or never
     finished). A failed or interrupted run keeps what it wrote, with FAILED.txt (the
     reason and its traceback) and its manifest saying so. `live_view` runs it in
-    sumo-gui with the live view drawn (the same results, slower)."""
+    sumo-gui with the live view drawn (the same results, slower). `timings` writes the
+    CPU time of each stage, SUMO's step and each hook to `timings.csv`."""
     sc = plan.scenario
     directory = Path(out_dir or results_directory(plan)).resolve()
     folder = claim(directory, "run", OUTPUT_NAMES, force)
@@ -131,7 +136,7 @@ def run(
         (directory / "scenario.yaml").write_text(
             plan.source.reproducible_yaml(sc.simulation), encoding="utf-8"
         )
-        result = _run(plan, directory, hooks, live_view)
+        result = _run(plan, directory, hooks, live_view, StageTimings() if timings else None)
     except BaseException as exc:
         reason = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
         trace = "".join(traceback.format_exception(exc))
@@ -145,8 +150,10 @@ def run(
 
 
 def _run(
-    plan: RunPlan, directory: Path, hooks: Sequence[StepHook], live_view: LiveViewOptions | None
-) -> RunResult:
+    plan: RunPlan, directory: Path, hooks: Sequence[StepHook], live_view: LiveViewOptions | None,
+    timings: StageTimings | None,
+) -> RunResult:  # fmt: skip
+    thread_cpu_start = time.thread_time()
     sc = plan.scenario
     generated = write_traffic_inputs(plan, directory / "inputs")
     out = sc.outputs
@@ -216,6 +223,7 @@ def _run(
             all_hooks,
             rng=np.random.default_rng(sc.simulation.seed),
             static_segments=walls if len(walls) else None,
+            timings=timings,
         )
         sim.run()
         end_time = backend.time_s
@@ -242,6 +250,10 @@ def _run(
     }
     if snapshot is not None:
         snapshot.save(directory / "scan_snapshot.npz")
+    if timings is not None:
+        loop_s = sum(timings.cpu_s.values())
+        timings.add("start and end", OUTSIDE, time.thread_time() - thread_cpu_start - loop_s)
+        timings.table().to_csv(directory / TIMINGS_FILE, index=False)
     with (directory / "summary.json").open("w") as f:
         json.dump(summary, f, indent=2)
     return RunResult(directory, summary)
