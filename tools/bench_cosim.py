@@ -52,6 +52,8 @@ Usage::
 `--cases` are platoon vehicle counts (multiples of 5); the 500 case runs with `--end-500`
 (and so do its own SUMO-alone and no-platoons baselines). `--budget-min` skips the cases
 not yet started once the bench has run that long (they are reported as not measured).
+`--timings` adds, below the table, each case's CPU by stage from one more, untimed run
+with `platoon-sumo run --timings` (the timed runs never read the stage clock).
 """
 
 from __future__ import annotations
@@ -80,8 +82,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlparse
 
+import pandas as pd
 import sumo
 import yaml
+
+from platoon_sumo.loop.timing import OUTSIDE, SUMO
 
 MEMBERS = 5
 STEP_S = 0.1
@@ -483,6 +488,36 @@ def table(
     return lines
 
 
+def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Path) -> list[str]:
+    """One more (untimed) run of each measured case with `--timings`: its costliest parts
+    per platoon vehicle-step, as lines for the block."""
+    lines = [
+        "",
+        "CPU per platoon vehicle-step by part (one more run of each case with `platoon-sumo "
+        "run --timings`, not timed; docs/outputs.md, `timings.csv`):",
+    ]
+    for c, r in cosim.items():
+        out = results / f"timings_{c}"
+        shutil.rmtree(out, ignore_errors=True)
+        print(f"timings: {c} platoon vehicles", flush=True)
+        done = subprocess.run(
+            cli("run", str(scenarios[c]), "--out", str(out), "--quiet", "--timings",
+                "--end", repr(r.end_s)),
+            capture_output=True, text=True,
+        )  # fmt: skip
+        if done.returncode != 0:
+            raise SystemExit(f"timings run failed: {done.stderr.strip() or done.stdout.strip()}")
+        parts = pd.read_csv(out / "timings.csv")
+        ours = parts[~parts["kind"].isin([SUMO, OUTSIDE])]
+        per = parts.set_index("part")["us_per_platoon_vehicle_step"]
+        shown = ", ".join(f"{name} {per[name]:.1f}" for name in parts["part"].head(9))
+        lines.append(
+            f"- {c} platoon vehicles: the loop's own "
+            f"{ours['us_per_platoon_vehicle_step'].sum():.0f} µs; {shown} µs"
+        )
+    return lines
+
+
 def update_doc(path: Path, label: str, body: str) -> None:
     """Put `body` between the label's markers in the co-simulation section of `path`."""
     start, end = f"<!-- bench_cosim:{label} -->", f"<!-- /bench_cosim:{label} -->"
@@ -535,6 +570,11 @@ def main(argv: list[str] | None = None) -> int:
         help="skip the end times (with their cases) not started after this many minutes; "
         "checked between end times, so it cannot stop the cases of one end time",
     )
+    parser.add_argument(
+        "--timings", action="store_true",
+        help="after the timed rounds, one more run of each case with `platoon-sumo run "
+        "--timings` (not timed) for the CPU of each stage, reported below the table",
+    )  # fmt: skip
     parser.add_argument("--seed", type=int, default=42, help="SUMO, demand and route seed")
     parser.add_argument("--grid", type=int, default=10, help="junctions per side")
     parser.add_argument("--block", type=float, default=250.0, help="block length [m]")
@@ -661,6 +701,7 @@ def main(argv: list[str] | None = None) -> int:
         alone[end], bare[end] = runs[0], runs[1]
         cosim.update(zip(group, runs[2:], strict=True))
 
+    stage_lines = stage_timings(cosim, scenarios, results) if args.timings else []
     elapsed_min = (time.perf_counter() - started) / 60.0
     lines = [
         f"### {args.label}",
@@ -689,6 +730,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         + ".",
     ]
+    lines += stage_lines
     not_inserted = {c: r.summary.get("platoons_not_inserted", []) for c, r in cosim.items()}
     if any(not_inserted.values()):
         lines.append(
