@@ -1,5 +1,7 @@
-"""Running per-vehicle series (count, sum of squares, largest magnitude, minimum), folded
-in one compiled pass a step (``metrics.stats.RunStats``)."""
+"""One step of trajectory rows folded into ``metrics.stats.RunStats``' per-vehicle state
+table in one compiled pass: the running series (count, sum of squares, largest magnitude,
+minimum), the step and time counters, saturation, the predecessor-in-view counts and the
+follower-predecessor pair sums."""
 
 from __future__ import annotations
 
@@ -51,8 +53,9 @@ def fold_step(
     "pair": the first of the seven pair sums). ``pred[k]``: the index in this step of
     vehicle k's predecessor, -1 if it is not in the step; ``in_window``: the step is in
     the metrics window (otherwise only the rows, times and previous gaps are kept).
-    The numbers are those of ``RunStats``' numpy expressions before, in the same order
-    for each state cell (``tests/metrics/test_stats_equivalence.py``)."""
+    Each state cell gets the same operations, in the same order, as in the numpy
+    expressions this pass replaced; ``tests/metrics/test_stats_equivalence.py`` checks
+    the summaries against a row-by-row reference."""
     (c_rows, c_first, c_last, c_previous, c_steps, c_accel, c_jerk, c_error, c_gap, c_ttc,
      c_time_gap, c_lateral, c_measure, c_has, c_following, c_saturated, c_max_accel,
      c_max_decel, c_max_speed, c_scans, c_seen, c_view, c_in_view, c_pair) = columns  # fmt: skip

@@ -131,9 +131,8 @@ class RunStats:
     platoon's vehicles, to tell when a follower drives at them (saturation); platoons
     not in it are only checked for supervisor interventions. Quality metrics use the
     rows from `start_s` on; event counts (collisions, emergency brakings, red lights,
-    cut-ins) the whole run. A step is folded in with array operations over its vehicles
-    (each vehicle once a step), so the cost per vehicle is a few array elements, not a
-    Python loop.
+    cut-ins) the whole run. A step is folded in by one compiled pass over its vehicles
+    (`kernels.series.fold_step`, each vehicle once a step).
     """
 
     def __init__(
@@ -183,27 +182,30 @@ class RunStats:
         if len(set(ids)) != n:
             raise ValueError(f"a vehicle has more than one row at t={time_s}")
         rows = self._rows(ids, columns)
-        pred_ids = columns.get("predecessor_id", [None] * n)
-        has_pred = np.fromiter((given(p) for p in pred_ids), dtype=bool, count=n)
-        in_view = _in_view(columns, n)
         in_window = time_s >= self.start_s - 1e-9
         if in_window:
+            pred_ids = columns.get("predecessor_id", [None] * n)
+            has_pred = np.fromiter((given(p) for p in pred_ids), dtype=bool, count=n)
+            in_view = _in_view(columns, n)
             at = {vid: k for k, vid in enumerate(ids)}
             pred = np.fromiter(
                 (at.get(str(p), -1) if h else -1 for p, h in zip(pred_ids, has_pred, strict=True)),
                 dtype=np.intp, count=n,
             )  # fmt: skip
-            supervisor = columns.get("supervisor", [None] * n)
-            overridden = np.fromiter(map(given, supervisor), dtype=bool, count=n)
-        else:
-            pred, overridden = np.full(n, -1, dtype=np.intp), np.zeros(n, dtype=bool)
-        values = np.stack([_floats(columns, key, n) for key in _FOLD_KEYS] + [in_view])
+            overridden = np.fromiter(map(given, columns.get("supervisor", [None] * n)),
+                                     dtype=bool, count=n)  # fmt: skip
+            values = np.stack([_floats(columns, key, n) for key in _FOLD_KEYS] + [in_view])
+        else:  # before the metrics window only the gap is kept (the next step's previous)
+            has_pred = overridden = np.zeros(n, dtype=bool)
+            pred = np.full(n, -1, dtype=np.intp)
+            values = np.full((len(FOLD_VALUES), n), math.nan)
+            values[0] = _floats(columns, _FOLD_KEYS[0], n)
         fold_step(
             self._state, rows, time_s, in_window, has_pred, pred, overridden, values,
             _FOLD_STATE_COLUMNS, AT_LIMIT_TOLERANCE,
         )  # fmt: skip
         if in_window:
-            self._platoon_step(columns, n, has_pred, in_view)
+            self._platoon_step(columns, n, has_pred, values[-1])
 
     def _platoon_step(
         self, columns: Columns, n: int, has_pred: np.ndarray, in_view: np.ndarray

@@ -22,8 +22,6 @@ from platoon_sumo.runner import load_plan, run
 from tests.helpers import REPO
 from tests.metrics import reference_stats
 
-pytestmark = pytest.mark.slow  # `pytest -m "not slow"` leaves this module out
-
 NUMERIC = ("speed_mps", "accel_mps2", "jerk_mps3", "gap_to_predecessor_m", "measured_gap_m",
            "desired_gap_m", "spacing_error_m", "time_gap_s", "ttc_s",
            "lateral_deviation_m")  # fmt: skip
@@ -117,6 +115,7 @@ def platoon_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return run(plan, out_dir=tmp_path_factory.mktemp("stats") / "out").directory
 
 
+@pytest.mark.slow  # `pytest -m "not slow"` leaves it out (the random tables stay in)
 def test_a_recorded_run_gives_the_same_summaries(platoon_run):
     traj = pd.read_csv(platoon_run / "trajectories.csv")
     assert traj["predecessor_id"].notna().any()
