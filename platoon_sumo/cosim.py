@@ -164,15 +164,14 @@ class CoSimulation:
             events=tuple(ctx.events),
             sumo_vehicles=self.backend.vehicle_count(),
         )
-        if timings is None:
-            for hook in self.hooks:
-                hook.on_step(record)
-            return record
-        timings.lap("step record", RECORD)
+        if timings is not None:
+            timings.lap("step record", RECORD)
         for hook in self.hooks:
             hook.on_step(record)
-            timings.lap(type(hook).__name__, HOOK)
-        timings.end_step(len(record.columns))
+            if timings is not None:
+                timings.lap(type(hook).__name__, HOOK)
+        if timings is not None:
+            timings.end_step(len(record.columns))
         return record
 
 
