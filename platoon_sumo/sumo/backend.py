@@ -18,7 +18,6 @@ import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import libsumo
@@ -205,7 +204,7 @@ class SumoBackend:
 
     def __init__(self, options: SumoOptions):
         self.options = options
-        self._api: ModuleType | _GuiConnection = libsumo
+        self._api: _Libsumo | _GuiConnection = _Libsumo()
         if options.gui:
             import traci
 
@@ -1255,6 +1254,48 @@ class SumoBackend:
             yield c.collider, c.victim, c.type
 
 
+#: libsumo's static methods that only hand their arguments on to the compiled function
+#: ``_libsumo.<domain>_<name>``: the loop calls these about 30 times per platoon vehicle
+#: and step, and the Python frame of the static method is a third of a position read's
+#: cost (0.46 against 0.30 µs, docs/performance.md). `tests/test_libsumo_direct.py`
+#: checks that each still only passes its arguments on.
+PASS_THROUGH = {
+    "vehicle": (
+        "getPosition", "getSpeed", "getAngle", "getLaneID", "getLanePosition", "setSpeed",
+        "changeLane", "getNextLinks", "getWaitingTime", "getLength", "getWidth", "getTypeID",
+        "getLateralLanePosition", "getNextTLS",
+    ),
+    "lane": ("getLastStepVehicleIDs", "getWidth", "getShape", "getLength"),
+    "trafficlight": ("getRedYellowGreenState",),
+}  # fmt: skip
+
+
+class _Libsumo:
+    """The libsumo module with the `PASS_THROUGH` methods of its domains bound to the
+    compiled functions they call (the same functions, one Python frame less)."""
+
+    def __init__(self) -> None:
+        for domain, names in PASS_THROUGH.items():
+            direct = _LibsumoDomain(getattr(libsumo, domain))
+            for name in names:
+                setattr(direct, name, getattr(libsumo._libsumo, f"{domain}_{name}"))
+            setattr(self, domain, direct)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(libsumo, name)
+
+
+class _LibsumoDomain:
+    """One libsumo domain (``libsumo.vehicle`` ...); what `_Libsumo` did not bind comes
+    from it."""
+
+    def __init__(self, domain: object):
+        self._domain = domain
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._domain, name)
+
+
 class _GuiConnection:
     """The `traci` client with a lost connection (sumo-gui's window closed) reported as
     a SumoError, whichever call meets it: one line for the user, not a traceback."""
@@ -1311,7 +1352,7 @@ class _LaneGrid:
         return np.array(self.lane_ids, dtype=object)
 
     @classmethod
-    def build(cls, api: ModuleType | _GuiConnection, cell_m: float) -> _LaneGrid:
+    def build(cls, api: _Libsumo | _GuiConnection, cell_m: float) -> _LaneGrid:
         lane_ids = tuple(sorted(api.lane.getIDList()))
         cells: dict[tuple[int, int], list[int]] = {}
         for k, lane in enumerate(lane_ids):
