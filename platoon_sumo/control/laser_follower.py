@@ -90,6 +90,7 @@ from platoon_sumo.control.perception import (
     ray_table,
 )
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.kernels.follower import (
     arc_clearance_kernel,
     follow_kernel,
@@ -406,19 +407,24 @@ class LaserFollower:
         if self._blocked:
             speed, lane_change, heading, keep_lane = 0.0, 0, None, False
         if self.mode == "following":
-            telemetry = Telemetry(self.mode, self._measured_gap_m, self.gap_policy)
+            telemetry = frozen_from_dict(Telemetry, {
+                "mode": self.mode,
+                "measured_gap_m": self._measured_gap_m,
+                "gap_policy": self.gap_policy,
+                "desired_accel_mps2": None,
+            })  # fmt: skip
         else:  # the same for every step in this mode (frozen): made once
             telemetry = self._telemetry.get(self.mode) or self._telemetry.setdefault(
                 self.mode, Telemetry(self.mode, None, self.gap_policy)
             )
-        return Command(
-            speed_mps=speed,
-            yaw_rate_radps=yaw_rate,
-            heading_rad=heading,
-            lane_change=lane_change,
-            telemetry=telemetry,
-            keep_lane=keep_lane,
-        )
+        return frozen_from_dict(Command, {
+            "speed_mps": speed,
+            "yaw_rate_radps": yaw_rate,
+            "heading_rad": heading,
+            "lane_change": lane_change,
+            "telemetry": telemetry,
+            "keep_lane": keep_lane,
+        })  # fmt: skip
 
     # ------------------------------------------------------------------ fused step
 

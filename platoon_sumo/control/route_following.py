@@ -23,6 +23,7 @@ import numpy as np
 from platoon_sumo.config_loader import bounded, require, require_positive
 from platoon_sumo.control.base import CONTROLLERS, Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
+from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.kernels.route import STEP_LANE_UNREAD, STEP_NOT_FINITE, route_step_kernel
 from platoon_sumo.path import RoutePath
 from platoon_sumo.vehicles import MotionLimits
@@ -158,7 +159,10 @@ class RouteFollowing:
         self._s_m = s
         if status == STEP_LANE_UNREAD:  # lane ids that do not read as EDGE_INDEX
             lane = path.lane_step(s, obs.lane_offset_m, s, 0.0)
-        return Command(speed_mps=speed, yaw_rate_radps=yaw_rate, lane_change=lane)
+        return frozen_from_dict(Command, {
+            "speed_mps": speed, "yaw_rate_radps": yaw_rate, "heading_rad": None,
+            "lane_change": lane, "telemetry": None, "keep_lane": False,
+        })  # fmt: skip
 
     def _set_limits(self, limits: MotionLimits) -> None:
         """The kernel's parameters (``PARAM_NAMES``) with these limits."""

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from platoon_sumo.config_loader import FieldError
 from platoon_sumo.errors import did_you_mean
+from platoon_sumo.frozen import frozen_from_dict
 
 #: Most rays a scanner may have (a UTM-30LX has 1081; each ray costs memory and time).
 MAX_SAMPLES = 20_000
@@ -230,22 +231,22 @@ class LaserScan:
     ) -> LaserScan:
         """``from_ranges`` without its checks and conversions, for the sensor's hot path:
         `ranges` is a float64 row of ``config.samples`` readings, the rest plain floats."""
-        return cls(
-            angle_min=config.angle_min_rad,
-            angle_max=config.angle_max_rad,
-            angle_increment=config.angle_increment_rad,
-            time_increment=0.0,
-            scan_time=config.scan_time_s,
-            range_min=config.range_min_m,
-            range_max=config.range_max_m,
-            ranges=ranges,
-            origin_x_m=origin_x_m,
-            origin_y_m=origin_y_m,
-            heading_rad=heading_rad,
-            stamp_s=stamp_s,
-            hit_labels=hit_labels,
-            predecessor_rays=predecessor_rays,
-        )
+        return frozen_from_dict(cls, {
+            "angle_min": config.angle_min_rad,
+            "angle_max": config.angle_max_rad,
+            "angle_increment": config.angle_increment_rad,
+            "time_increment": 0.0,
+            "scan_time": config.scan_time_s,
+            "range_min": config.range_min_m,
+            "range_max": config.range_max_m,
+            "ranges": ranges,
+            "origin_x_m": origin_x_m,
+            "origin_y_m": origin_y_m,
+            "heading_rad": heading_rad,
+            "stamp_s": stamp_s,
+            "hit_labels": hit_labels,
+            "predecessor_rays": predecessor_rays,
+        })  # fmt: skip
 
     @property
     def angles(self) -> FloatArray:
