@@ -22,12 +22,17 @@ def test_method_only_passes_its_arguments_on(domain: str, name: str) -> None:
     method = getattr(getattr(libsumo, domain), name)
     (function,) = ast.parse(textwrap.dedent(inspect.getsource(method))).body
     assert isinstance(function, ast.FunctionDef)
-    params = [a.arg for a in function.args.args]
+    signature = function.args
     (statement,) = function.body
     assert isinstance(statement, ast.Return) and isinstance(statement.value, ast.Call)
     call = statement.value
     assert ast.unparse(call.func) == f"_libsumo.{domain}_{name}"
-    assert [ast.unparse(a) for a in call.args] == params and not call.keywords
+    forwarded = [ast.unparse(a) for a in call.args] + [ast.unparse(k) for k in call.keywords]
+    if signature.vararg is not None:  # def f(*args, **kwargs): return g(*args, **kwargs)
+        assert not signature.args and signature.kwarg is not None
+        assert forwarded == [f"*{signature.vararg.arg}", f"**{signature.kwarg.arg}"]
+    else:
+        assert forwarded == [a.arg for a in signature.args] and signature.kwarg is None
 
 
 def test_not_listed_methods_stay_the_modules() -> None:

@@ -1263,7 +1263,9 @@ PASS_THROUGH = {
     "vehicle": (
         "getPosition", "getSpeed", "getAngle", "getLaneID", "getLanePosition", "setSpeed",
         "changeLane", "getNextLinks", "getWaitingTime", "getLength", "getWidth", "getTypeID",
-        "getLateralLanePosition", "getNextTLS",
+        "getLateralLanePosition", "getNextTLS", "moveToXY", "setPreviousSpeed",
+        "changeSublane", "setMaxSpeedLat", "getLateralSpeed", "getLaneChangeState",
+        "getBestLanes",
     ),
     "lane": ("getLastStepVehicleIDs", "getWidth", "getShape", "getLength"),
     "trafficlight": ("getRedYellowGreenState",),
