@@ -1,7 +1,8 @@
 """Frozen dataclass instances made from a dictionary of every field, for the loop's hot
 paths: a frozen dataclass's `__init__` sets its fields one `object.__setattr__` at a
-time (a 14-field `LaserScan` 3.5 µs, an `Observation` about 9 µs), while handing the
-instance a dictionary costs about 0.5 µs. Only for classes without `__post_init__`."""
+time (a 14-field `LaserScan` 1.9 µs, a 24-field `Observation` 3.0 µs), while handing
+the instance a checked dictionary costs 0.6-0.7 µs. Only for classes without
+`__post_init__`."""
 
 from __future__ import annotations
 
