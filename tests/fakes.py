@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from platoon_sumo.loop.ports import FloatArray, LaneOccupant, RouteContext, StandingVehicle
-from platoon_sumo.world import VehicleAhead, WorldSnapshot
+from platoon_sumo.world import LinkAhead, VehicleAhead, WorldSnapshot
 
 LANE = "WE_0"
 LANE_Y_M = -5.25
@@ -141,7 +141,7 @@ class FakeBackend:
         return list(self.collisions)
 
     def route_contexts(
-        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
+        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float], read_links: Sequence[bool]
     ) -> list[RouteContext]:
         out: list[RouteContext] = []
         for vid, horizon in zip(vehicle_ids, horizons_m, strict=True):
@@ -159,6 +159,9 @@ class FakeBackend:
             )
             out.append((None, leader, None))
         return out
+
+    def link_ahead(self, vehicle_id: str, distance_m: float) -> LinkAhead | None:
+        return None  # a straight road without junctions
 
     def move(
         self, vehicle_ids: Sequence[str], front_x_m: FloatArray, front_y_m: FloatArray,

@@ -52,7 +52,10 @@ class Observation:
     everywhere (`planar`)."""
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
-    """The junction link at the end of the current lane with SUMO's right-of-way view."""
+    """The junction link at the end of the current lane with SUMO's right-of-way view,
+    when that end is within reach (None for a controller class that declares
+    `reads_link_ahead = False`: SUMO's link query, a walk over every link left on the
+    route, is then made only where the loop itself needs it)."""
     lane_change: LaneChangeAhead | None = None
     """The next lane change of the route within reach, and whether its target lane is clear."""
     vehicle_ahead: VehicleAhead | None = None
@@ -160,6 +163,12 @@ class Controller(Protocol):
     def step(self, observation: Observation) -> Command:
         """Decide this step's command; must be deterministic given the observations."""
         ...
+
+
+def needs_link_ahead(controller: object) -> bool:
+    """Whether a controller may read `Observation.link_ahead`: unless its class says
+    `reads_link_ahead = False` (the built-in controllers, which never do)."""
+    return bool(getattr(type(controller), "reads_link_ahead", True))
 
 
 def check_controller(cls: object) -> str | None:

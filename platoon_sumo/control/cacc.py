@@ -86,6 +86,7 @@ class GapControl:
     law every fall-back uses."""
 
     Params: ClassVar[type[Any]]
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: Any = None) -> None:
         self.params = params or self.Params()

@@ -299,6 +299,7 @@ class LaserFollower:
     """
 
     Params: ClassVar[type[LaserFollowerParams]] = LaserFollowerParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: LaserFollowerParams | None = None):
         self.params = params or LaserFollowerParams()

@@ -138,6 +138,7 @@ class PaperLeader:
     """
 
     Params: ClassVar[type[PaperLeaderParams]] = PaperLeaderParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: PaperLeaderParams | None = None):
         self.params = params or PaperLeaderParams()
@@ -296,6 +297,7 @@ class PaperFollower:
     """
 
     Params: ClassVar[type[PaperFollowerParams]] = PaperFollowerParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: PaperFollowerParams | None = None):
         self.params = params or PaperFollowerParams()

@@ -73,6 +73,7 @@ class RouteFollowing:
     """Pure pursuit + speed profile along the vehicle's own route."""
 
     Params: ClassVar[type[RouteFollowingParams]] = RouteFollowingParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: RouteFollowingParams | None = None):
         self.params = params or RouteFollowingParams()

@@ -104,6 +104,7 @@ class SpeedProfileLeader:
     """Route following with the speed capped by a time profile (see the module docstring)."""
 
     Params: ClassVar[type[SpeedProfileParams]] = SpeedProfileParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: SpeedProfileParams | None = None):
         self.params = params or SpeedProfileParams()

@@ -116,6 +116,7 @@ class SumoDriver:
     the speed it drives now (the supervisor's check)."""
 
     Params: ClassVar[type[SumoDriverParams]] = SumoDriverParams
+    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: SumoDriverParams) -> None:
         self.params = params

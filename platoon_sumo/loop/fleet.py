@@ -79,6 +79,9 @@ class Member:
     sumo_capped: bool = False
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
+    lane_end_m: float | None = None
+    """The end of its lane within its horizon, whose link is not read yet [m]
+    (`loop.progress.link_ahead` reads it; None: read, or no lane end within reach)."""
     lane_change: LaneChangeAhead | None = None
     vehicle_ahead: VehicleAhead | None = None
     obstacle_ahead: VehicleAhead | None = None

@@ -120,7 +120,8 @@ class Departures:
             ctx.emit(EventKind.DEPARTED, member)
             new.append(member)
         if new:  # the light ahead at departure: the red-light check compares with it
-            contexts = ctx.backend.route_contexts([m.id for m in new], [0.0] * len(new))
+            ids = [m.id for m in new]
+            contexts = ctx.backend.route_contexts(ids, [0.0] * len(new), [False] * len(new))
             for member, (signal, _, _) in zip(new, contexts, strict=True):
                 member.signal = signal
 

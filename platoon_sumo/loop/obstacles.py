@@ -17,6 +17,7 @@ from platoon_sumo.kernels.lanes import lane_position, moved_along_lanes
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.loop.paths import PathStack
+from platoon_sumo.loop.progress import link_ahead
 from platoon_sumo.path import RoutePath
 from platoon_sumo.sumo.network import Network
 from platoon_sumo.world import VehicleAhead, WorldSnapshot
@@ -279,10 +280,10 @@ class ObstaclesAhead:
         found: list[tuple[int, int, int, float]] = []
         held, self._yielding = self._yielding, {}
         for j, m in enumerate(members):
-            link = m.link_ahead
+            end_m = m.lane_end_m if m.link_ahead is None else m.link_ahead.distance_m
             me = world.index[m.id]
             lane = world.lane_ids[me]
-            if link is None or not lane or lane[0] == ":" or link.distance_m > table[j, 3]:
+            if end_m is None or not lane or lane[0] == ":" or end_m > table[j, 3]:
                 continue
             if on_lane is None:  # built once a member is near its lane's end
                 members_ids = {m.id for m in ctx.fleet}
@@ -301,6 +302,9 @@ class ObstaclesAhead:
                 <= reach + world.length_m[i]
                 for i in on_lane.get(lane, ())
             ):
+                continue
+            link = link_ahead(ctx, m)  # SUMO's link query only now: is there one?
+            if link is None:
                 continue
             if lane not in occupants:
                 occupants[lane] = backend.lane_occupants(lane)

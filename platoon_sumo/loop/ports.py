@@ -19,8 +19,9 @@ FloatArray = NDArray[np.float64]
 
 #: (vehicle id, front position along the lane [m], speed [m/s], length [m])
 LaneOccupant = tuple[str, float, float, float]
-#: The route context of one vehicle: next light, SUMO's leader, the link ahead.
-RouteContext = tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | None]
+#: The route context of one vehicle: next light, SUMO's leader, the link ahead (or, not
+#: read, the distance to its lane's end [m]: `Backend.route_contexts`).
+RouteContext = tuple[SignalAhead | None, VehicleAhead | None, LinkAhead | float | None]
 #: (vehicle id, lane id, front bumper x, y [m], seconds standing still)
 StandingVehicle = tuple[str, str, float, float, float]
 
@@ -84,11 +85,18 @@ class Backend(ActuationPort, Protocol):
     def sumo_collisions(self) -> Iterable[tuple[str, str, str]]: ...
 
     def route_contexts(
-        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float]
+        self, vehicle_ids: Sequence[str], horizons_m: Sequence[float], read_links: Sequence[bool]
     ) -> list[RouteContext]:
         """Per vehicle: (next traffic light on its route, the nearest vehicle ahead on its
         lanes within its horizon, the junction link at the end of its lane if that end is
-        within its horizon), as SUMO sees them after the last step."""
+        within its horizon), as SUMO sees them after the last step. Where `read_links` is
+        False, the third is the distance to the lane's end instead of the link (None
+        where the end is not within the horizon or the vehicle is in a junction)."""
+        ...
+
+    def link_ahead(self, vehicle_id: str, distance_m: float) -> LinkAhead | None:
+        """The junction link at the end of the vehicle's lane, `distance_m` ahead (None
+        at its route's end), as SUMO sees it after the last step."""
         ...
 
     def junction_yields(self, vehicle_id: str) -> list[tuple[str, float]]:

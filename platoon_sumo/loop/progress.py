@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from platoon_sumo.control.base import needs_link_ahead
 from platoon_sumo.events import EventKind
 from platoon_sumo.kernels.route import project_members
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, Member
 from platoon_sumo.loop.paths import PathStack
 from platoon_sumo.loop.ports import FloatArray
-from platoon_sumo.world import SignalAhead
+from platoon_sumo.world import LinkAhead, SignalAhead
 
 #: A member whose front bumper is this close to its path's end has arrived [m].
 ARRIVAL_TOLERANCE_M = 0.05
@@ -39,6 +40,16 @@ def ahead_horizon_m(m: Member, dt_s: float) -> float:
     v = vehicle.max_speed_mps
     comfortable = v * v / (2 * supervisor.comfort_decel_mps2) + supervisor.stop_margin_m + v * dt_s
     return max(20.0 * vehicle.length_m, v * v / vehicle.max_decel_mps2 * 2, comfortable)
+
+
+def link_ahead(ctx: StepContext, m: Member) -> LinkAhead | None:
+    """`m`'s link at the end of its lane (within its horizon), read from SUMO when a
+    stage first asks for it this step (`RouteProgress` leaves it unread where neither
+    the supervisor nor the controller reads it). SUMO's state is the one after the
+    step until the next one, so it is the link `RouteProgress` would have read."""
+    if m.lane_end_m is not None:
+        m.link_ahead, m.lane_end_m = ctx.backend.link_ahead(m.id, m.lane_end_m), None
+    return m.link_ahead
 
 
 class RouteProgress:
@@ -69,12 +80,21 @@ class RouteProgress:
         fleet.kin[rows, LATERAL] = lateral
         route_s_m = route_s.tolist()
         travelled = np.maximum(route_s - previous_s_m, 0.0).tolist()
-        contexts = ctx.backend.route_contexts([m.id for m in members], [h for _, h in horizons])
+        # the link is read now for the members whose supervisor yields at junctions
+        # (those SUMO does not drive) or whose controller may read it, else on demand
+        read = [not m.actuator.sumo_drives or needs_link_ahead(m.controller) for m in members]
+        contexts = ctx.backend.route_contexts(
+            [m.id for m in members], [h for _, h in horizons], read
+        )
         for m, s_m, travelled_m, (signal, ahead, link) in zip(
             members, route_s_m, travelled, contexts, strict=True
         ):
             previous, m.signal = m.signal, signal
-            m.vehicle_ahead, m.link_ahead = ahead, link
+            m.vehicle_ahead = ahead
+            if isinstance(link, float):
+                m.link_ahead, m.lane_end_m = None, link
+            else:
+                m.link_ahead, m.lane_end_m = link, None
             if (
                 previous is not None
                 and previous.state in ("r", "u")

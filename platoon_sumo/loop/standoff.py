@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
+from platoon_sumo.loop.progress import link_ahead
 
 #: A platoon car standing (below `STILL_MPS` [m/s]) this long [s] within `AT_LINK_M`
 #: [m] of a closed unsignalised link takes the junction once every vehicle it yields
@@ -43,14 +44,11 @@ class Standoffs:
                     ctx.backend.take_right_of_way(m.id, False)
                     del self._taking[m.id]
                 continue
-            link = m.link_ahead
-            if (
-                link is None
-                or link.state not in UNSIGNALISED_YIELD
-                or not link.must_yield
-                or link.distance_m > AT_LINK_M
-                or world.speed_mps[i] >= STILL_MPS
-            ):
+            end_m = m.lane_end_m if m.link_ahead is None else m.link_ahead.distance_m
+            link = None
+            if end_m is not None and end_m <= AT_LINK_M and world.speed_mps[i] < STILL_MPS:
+                link = link_ahead(ctx, m)  # SUMO's link query only for a car standing at it
+            if link is None or link.state not in UNSIGNALISED_YIELD or not link.must_yield:
                 self._since.pop(m.id, None)
                 continue
             since = self._since.setdefault(m.id, now)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
 import math
+import re
 
 import libsumo
 import numpy as np
@@ -72,3 +74,17 @@ def test_controller_contract(name, no_sumo):
     # reset really forgets: a reset instance repeats the first decisions
     ctrl.reset()
     assert [ctrl.step(obs) for obs in observations()] == commands[0]
+
+
+@pytest.mark.parametrize("name", CONTROLLERS.names())
+def test_a_controller_saying_it_never_reads_the_link_does_not(name):
+    """`reads_link_ahead = False` spares the vehicle SUMO's link query, and its
+    observations then hold no link: a controller saying so must not read it."""
+    cls = CONTROLLERS.get(name)
+    if getattr(cls, "reads_link_ahead", True):
+        return
+    for klass in cls.__mro__:
+        module = inspect.getmodule(klass)
+        if module is not None and module.__name__.startswith("platoon_sumo.control."):
+            source = inspect.getsource(module)
+            assert not re.search(r"(?<!reads_)link_ahead", source), (name, module.__name__)

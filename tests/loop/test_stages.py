@@ -22,7 +22,7 @@ from platoon_sumo.loop.decision import Decide
 from platoon_sumo.loop.insertion import Departures, InsertDue, RemovedElsewhere
 from platoon_sumo.loop.observe import Footprints, Gridlocks, ObserveWorld, SumoReports
 from platoon_sumo.loop.obstacles import ObstaclesAhead
-from platoon_sumo.loop.progress import RouteProgress
+from platoon_sumo.loop.progress import RouteProgress, link_ahead
 from platoon_sumo.loop.relations import Cohesion, Predecessors, SafetyCheck
 from platoon_sumo.loop.sensing import Sense
 from platoon_sumo.loop.standoff import FOES_STILL_S, STANDOFF_S, Standoffs
@@ -251,6 +251,82 @@ def test_a_member_sumo_drives_is_only_checked_never_reported_braking(write_scena
     assert ctx.events == []
     Actuate()(ctx)
     assert backend.speed_commands == {"p.0": -1.0}
+
+
+class LinkBackend(FakeBackend):
+    """The fake road ends 40 m ahead at a minor link; records which links it was asked
+    to read with the route contexts, and every later read."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.read_links: list[bool] = []
+        self.later_reads: list[tuple[str, float]] = []
+
+    def route_contexts(self, vehicle_ids, horizons_m, read_links):
+        self.read_links = list(read_links)
+        contexts = super().route_contexts(vehicle_ids, horizons_m, read_links)
+        return [
+            (signal, ahead, LinkAhead("m", False, False, True, 40.0) if read else 40.0)
+            for (signal, ahead, _), read in zip(contexts, read_links, strict=True)
+        ]
+
+    def link_ahead(self, vehicle_id: str, distance_m: float) -> LinkAhead | None:
+        self.later_reads.append((vehicle_id, distance_m))
+        return LinkAhead("m", False, False, True, distance_m)
+
+
+class Unlinked(Scripted):
+    """`Scripted`, declaring that it never reads `link_ahead`."""
+
+    reads_link_ahead: ClassVar[bool] = False
+
+
+@pytest.mark.parametrize(
+    ("actuation", "leader", "read"),
+    [
+        ("lane", "tests.loop.test_stages:Scripted", True),  # a plug-in may read it
+        ("lane", "tests.loop.test_stages:Unlinked", False),  # SUMO gives way for it
+        ("planar", "tests.loop.test_stages:Unlinked", True),  # the supervisor yields
+    ],
+)
+def test_sumos_link_query_is_made_where_the_link_may_be_read(
+    write_scenario, actuation: str, leader: str, read: bool
+):
+    """SUMO's link query walks every link left on the route, the dearest per-vehicle
+    read: `RouteProgress` makes it for a member whose controller may read the link or
+    whose supervisor yields at junctions (SUMO does not drive it), and leaves the others
+    the lane end's distance, read if a stage asks (`loop.progress.link_ahead`)."""
+    backend = LinkBackend()
+    ctx = context(plan(write_scenario, actuation, members=1, leader={"type": leader}), backend)
+    departed(ctx, backend)
+    RouteProgress()(ctx)
+    (m,) = list(ctx.fleet)
+    assert backend.read_links == [read]
+    if read:
+        assert m.link_ahead == LinkAhead("m", False, False, True, 40.0) and m.lane_end_m is None
+    else:
+        assert m.link_ahead is None and m.lane_end_m == 40.0
+        assert link_ahead(ctx, m) == LinkAhead("m", False, False, True, 40.0)
+        assert link_ahead(ctx, m) is m.link_ahead and m.lane_end_m is None
+        assert backend.later_reads == [("p.0", 40.0)]  # once
+
+
+def test_standoffs_read_a_link_left_unread_only_for_a_car_standing_at_it(write_scenario):
+    """The standoff rule needs the link's right of way only for a car standing within
+    `AT_LINK_M` of it; a moving car, or one farther, costs no link query."""
+    backend = LinkBackend()
+    leader = {"type": "tests.loop.test_stages:Unlinked"}
+    ctx = context(plan(write_scenario, members=1, leader=leader), backend)
+    departed(ctx, backend)
+    (m,) = list(ctx.fleet)
+    standoffs = Standoffs()
+    for end_m, speed_mps, reads in ((40.0, 0.0, 0), (2.0, 3.0, 0), (2.0, 0.0, 1)):
+        m.link_ahead, m.lane_end_m = None, end_m
+        backend.vehicles["p.0"].speed_mps = speed_mps
+        ObserveWorld()(ctx)
+        backend.later_reads = []
+        standoffs(ctx)
+        assert len(backend.later_reads) == reads
 
 
 def test_a_failing_controller_is_named_with_its_vehicle_and_time(write_scenario):
