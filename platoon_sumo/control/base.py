@@ -53,9 +53,9 @@ class Observation:
     signal: SignalAhead | None = None
     link_ahead: LinkAhead | None = None
     """The junction link at the end of the current lane with SUMO's right-of-way view,
-    when that end is within reach (None for a controller class that declares
-    `reads_link_ahead = False`: SUMO's link query, a walk over every link left on the
-    route, is then made only where the loop itself needs it)."""
+    when that end is within reach. May be None for a controller class that declares
+    `reads_link_ahead = False` on a vehicle SUMO drives: SUMO's link query, a walk over
+    every link left on the route, is then made only where the loop itself needs it."""
     lane_change: LaneChangeAhead | None = None
     """The next lane change of the route within reach, and whether its target lane is clear."""
     vehicle_ahead: VehicleAhead | None = None

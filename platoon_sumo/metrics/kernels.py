@@ -38,7 +38,7 @@ def time_gap_s(gap_m: FloatArray, speed_mps: FloatArray) -> FloatArray:
     """Bumper-to-bumper gap over own speed [s]: how long until the follower reaches where
     the predecessor's rear is now (a time gap; a time headway would be measured front to
     front, the predecessor's length more); no value at (near) standstill."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # masked entries
         return np.where(speed_mps > TIME_GAP_MIN_SPEED_MPS, gap_m / speed_mps, math.nan)
 
 
@@ -48,7 +48,7 @@ def time_to_collision_s(
     """Gap (0 if negative) over closing speed [s] while closing in (own speed above the
     predecessor's); no value otherwise. Constant speeds assumed, speeds along the road."""
     closing = speed_mps - predecessor_speed_mps
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # masked entries
         gap = np.where(gap_m < 0.0, 0.0, gap_m)
         return np.where(closing > TTC_MIN_CLOSING_MPS, gap / closing, math.nan)
 
