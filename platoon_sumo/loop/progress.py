@@ -45,8 +45,11 @@ def ahead_horizon_m(m: Member, dt_s: float) -> float:
 def link_ahead(ctx: StepContext, m: Member) -> LinkAhead | None:
     """`m`'s link at the end of its lane (within its horizon), read from SUMO when a
     stage first asks for it this step (`RouteProgress` leaves it unread where neither
-    the supervisor nor the controller reads it). SUMO's state is the one after the
-    step until the next one, so it is the link `RouteProgress` would have read."""
+    the supervisor nor the controller reads it). SUMO does not step before those
+    stages, and the one call between (a standoff's right of way, which sets that car's
+    speed mode) changes neither whether a car has a link nor where it is: the standoff
+    rule reads a car's link before it acts on that car, the side-by-side rule only
+    asks whether there is one."""
     if m.lane_end_m is not None:
         m.link_ahead, m.lane_end_m = ctx.backend.link_ahead(m.id, m.lane_end_m), None
     return m.link_ahead
