@@ -166,9 +166,10 @@ class Controller(Protocol):
 
 
 def needs_link_ahead(controller: object) -> bool:
-    """Whether a controller may read `Observation.link_ahead`: unless its class says
-    `reads_link_ahead = False` (the built-in controllers, which never do)."""
-    return bool(getattr(type(controller), "reads_link_ahead", True))
+    """Whether a controller may read `Observation.link_ahead`: unless its own class says
+    `reads_link_ahead = False` (the built-in controllers, which never do). Not inherited:
+    a plug-in subclassing a built-in controller gets the link unless it says so too."""
+    return bool(vars(type(controller)).get("reads_link_ahead", True))
 
 
 def check_controller(cls: object) -> str | None:

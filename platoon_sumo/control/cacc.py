@@ -86,7 +86,6 @@ class GapControl:
     law every fall-back uses."""
 
     Params: ClassVar[type[Any]]
-    reads_link_ahead: ClassVar[bool] = False
 
     def __init__(self, params: Any = None) -> None:
         self.params = params or self.Params()
@@ -177,6 +176,7 @@ class Acc(GapControl):
     """Radar-only constant time gap control (the `cacc` law without feed-forward)."""
 
     Params: ClassVar[type[AccParams]] = AccParams
+    reads_link_ahead: ClassVar[bool] = False
     params: AccParams
 
     def reset(self) -> None:
@@ -210,6 +210,7 @@ class Cacc(Acc):
     acceleration, falling back to ACC when its messages stop."""
 
     Params: ClassVar[type[CaccParams]] = CaccParams
+    reads_link_ahead: ClassVar[bool] = False
     params: CaccParams
 
     def _feed_forward(self, obs: Observation, reading: RadarReading) -> float | None:

@@ -101,6 +101,7 @@ class PathCacc(GapControl):
     stops."""
 
     Params: ClassVar[type[PathCaccParams]] = PathCaccParams
+    reads_link_ahead: ClassVar[bool] = False
     params: PathCaccParams
 
     def _law(self, obs: Observation, reading: RadarReading, accel: float) -> tuple[float, str]:

@@ -94,10 +94,10 @@ class RouteProgress:
         ):
             previous, m.signal = m.signal, signal
             m.vehicle_ahead = ahead
-            if isinstance(link, float):
-                m.link_ahead, m.lane_end_m = None, link
-            else:
+            if link is None or isinstance(link, LinkAhead):
                 m.link_ahead, m.lane_end_m = link, None
+            else:  # not read: the distance to the lane's end
+                m.link_ahead, m.lane_end_m = None, float(link)
             if (
                 previous is not None
                 and previous.state in ("r", "u")

@@ -1202,7 +1202,7 @@ class SumoBackend:
     def link_ahead(self, vehicle_id: str, distance_m: float) -> LinkAhead | None:
         """The link at the end of the vehicle's lane, `distance_m` ahead (None at the
         route's end). SUMO's link query is the dearest of the per-vehicle reads (it walks
-        every link left on the route: about 7 µs a call on the bench), so it is made only
+        every link left on the route: about 12 µs a query on the bench), so it is made only
         for a vehicle on a lane (not in a junction) whose end is within its horizon, and
         only where a stage or its controller needs the link (`route_contexts`)."""
         links = self._api.vehicle.getNextLinks(vehicle_id)
@@ -1272,7 +1272,8 @@ PASS_THROUGH = {
 
 class _Libsumo:
     """The libsumo module with the `PASS_THROUGH` methods of its domains bound to the
-    compiled functions they call (the same functions, one Python frame less)."""
+    compiled functions they call (the same functions, one Python frame less), when the
+    backend is made: a test that patches one of those must patch `libsumo._libsumo`."""
 
     def __init__(self) -> None:
         for domain, names in PASS_THROUGH.items():

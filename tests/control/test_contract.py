@@ -81,7 +81,7 @@ def test_a_controller_saying_it_never_reads_the_link_does_not(name):
     """`reads_link_ahead = False` spares the vehicle SUMO's link query, and its
     observations then hold no link: a controller saying so must not read it."""
     cls = CONTROLLERS.get(name)
-    if getattr(cls, "reads_link_ahead", True):
+    if vars(cls).get("reads_link_ahead", True):
         return
     for klass in cls.__mro__:
         module = inspect.getmodule(klass)

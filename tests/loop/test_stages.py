@@ -281,11 +281,16 @@ class Unlinked(Scripted):
     reads_link_ahead: ClassVar[bool] = False
 
 
+class LinkedChild(Unlinked):
+    """A plug-in built on `Unlinked` that does not say it: it may read the link."""
+
+
 @pytest.mark.parametrize(
     ("actuation", "leader", "read"),
     [
         ("lane", "tests.loop.test_stages:Scripted", True),  # a plug-in may read it
         ("lane", "tests.loop.test_stages:Unlinked", False),  # SUMO gives way for it
+        ("lane", "tests.loop.test_stages:LinkedChild", True),  # the flag is not inherited
         ("planar", "tests.loop.test_stages:Unlinked", True),  # the supervisor yields
     ],
 )
