@@ -165,11 +165,12 @@ class Controller(Protocol):
         ...
 
 
-def needs_link_ahead(controller: object) -> bool:
-    """Whether a controller may read `Observation.link_ahead`: unless its own class says
-    `reads_link_ahead = False` (the built-in controllers, which never do). Not inherited:
-    a plug-in subclassing a built-in controller gets the link unless it says so too."""
-    return bool(vars(type(controller)).get("reads_link_ahead", True))
+def reads_link_ahead(cls: type) -> bool:
+    """Whether a controller class may read `Observation.link_ahead`: unless the class
+    itself says `reads_link_ahead = False` (the built-in controllers, which never do).
+    Not inherited: a plug-in subclassing a built-in controller gets the link unless it
+    says so too."""
+    return bool(vars(cls).get("reads_link_ahead", True))
 
 
 def check_controller(cls: object) -> str | None:

@@ -109,6 +109,13 @@ class Member:
         self.platoon_id = self.plan.platoon_id
         self.index = self.plan.index
 
+    @property
+    def link_distance_m(self) -> float | None:
+        """Distance to the end of its lane where that end is within its horizon (on a
+        lane), its link read or not [m]; None otherwise, or where the link was read and
+        there is none (the route's end)."""
+        return self.lane_end_m if self.link_ahead is None else self.link_ahead.distance_m
+
     def front_bumper(self) -> tuple[float, float]:
         off = self.front_offset_m
         return self.x_m + off * math.cos(self.yaw_rad), self.y_m + off * math.sin(self.yaw_rad)

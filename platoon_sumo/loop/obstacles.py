@@ -280,7 +280,7 @@ class ObstaclesAhead:
         found: list[tuple[int, int, int, float]] = []
         held, self._yielding = self._yielding, {}
         for j, m in enumerate(members):
-            end_m = m.lane_end_m if m.link_ahead is None else m.link_ahead.distance_m
+            end_m = m.link_distance_m
             me = world.index[m.id]
             lane = world.lane_ids[me]
             if end_m is None or not lane or lane[0] == ":" or end_m > table[j, 3]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from platoon_sumo.control.base import needs_link_ahead
+from platoon_sumo.control.base import reads_link_ahead
 from platoon_sumo.events import EventKind
 from platoon_sumo.kernels.route import project_members
 from platoon_sumo.loop.context import StepContext
@@ -85,7 +85,7 @@ class RouteProgress:
         travelled = np.maximum(route_s - previous_s_m, 0.0).tolist()
         # the link is read now for the members whose supervisor yields at junctions
         # (those SUMO does not drive) or whose controller may read it, else on demand
-        read = [not m.actuator.sumo_drives or needs_link_ahead(m.controller) for m in members]
+        read = [not m.actuator.sumo_drives or reads_link_ahead(type(m.controller)) for m in members]
         contexts = ctx.backend.route_contexts(
             [m.id for m in members], [h for _, h in horizons], read
         )

@@ -44,7 +44,7 @@ class Standoffs:
                     ctx.backend.take_right_of_way(m.id, False)
                     del self._taking[m.id]
                 continue
-            end_m = m.lane_end_m if m.link_ahead is None else m.link_ahead.distance_m
+            end_m = m.link_distance_m
             link = None
             if end_m is not None and end_m <= AT_LINK_M and world.speed_mps[i] < STILL_MPS:
                 link = link_ahead(ctx, m)  # SUMO's link query only for a car standing at it

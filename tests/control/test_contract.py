@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from platoon_sumo.control import CONTROLLERS
-from platoon_sumo.control.base import Command, Observation
+from platoon_sumo.control.base import Command, Observation, reads_link_ahead
 from platoon_sumo.path import RoutePath
 from platoon_sumo.vehicles import MotionLimits
 from platoon_sumo.world import SignalAhead
@@ -81,7 +81,7 @@ def test_a_controller_saying_it_never_reads_the_link_does_not(name):
     """`reads_link_ahead = False` spares the vehicle SUMO's link query, and its
     observations then hold no link: a controller saying so must not read it."""
     cls = CONTROLLERS.get(name)
-    if vars(cls).get("reads_link_ahead", True):
+    if reads_link_ahead(cls):
         return
     for klass in cls.__mro__:
         module = inspect.getmodule(klass)
