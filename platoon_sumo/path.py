@@ -260,17 +260,20 @@ class RoutePath:
         return [self.lane_ids[int(i)] for i in self.lane_index]
 
     @cached_property
-    def _junction_points(self) -> NDArray[np.bool_]:
-        """Per point: on a junction's internal lane."""
+    def _junction_points_before(self) -> list[int]:
+        """Per point index i (and one past the end): how many points before i lie on a
+        junction's internal lane (a prefix count: a stretch is one subtraction)."""
         internal = np.array([id_.startswith(":") for id_ in self.lane_ids], dtype=bool)
-        return internal[np.asarray(self.lane_index, dtype=np.intp)]
+        on_junction = internal[np.asarray(self.lane_index, dtype=np.intp)]
+        return [0, *np.cumsum(on_junction, dtype=np.int64).tolist()]
 
     def junction_within(self, from_s_m: float, to_s_m: float) -> bool:
         """Does any of the path from `from_s_m` to `to_s_m` run inside a junction?"""
-        points = self._junction_points
-        i0 = min(max(int(from_s_m // self.spacing_m), 0), len(points))
-        i1 = min(max(int(to_s_m // self.spacing_m) + 2, 0), len(points))
-        return bool(points[i0:i1].any())
+        before = self._junction_points_before
+        n = len(before) - 1
+        i0 = min(max(int(from_s_m // self.spacing_m), 0), n)
+        i1 = min(max(int(to_s_m // self.spacing_m) + 2, 0), n)
+        return i1 > i0 and before[i1] > before[i0]
 
     @cached_property
     def _lane_key_of_point(self) -> list[tuple[str, ...] | None]:

@@ -178,3 +178,36 @@ def test_lanes_are_named_by_the_map_along_a_routes_lane_change():
     assert path.same_lane(middle, 1.0, after, 0.0)  # half a lane up, plus 1 m: lane 1
     assert path.same_lane(middle, -1.0, before, 0.0)  # half a lane up, minus 1 m: lane 0
     assert not path.same_lane(before, float("nan"), after, 0.0)
+
+
+def junction_path() -> RoutePath:
+    """Road, junction, road, junction, road: 20 m pieces at 0.5 m spacing."""
+    xs = [np.linspace(20 * k, 20 * (k + 1), 41) for k in range(5)]
+    pieces = [np.column_stack([x, np.zeros(41)]) for x in xs]
+    lanes = ["a_0", ":j_0_0", "b_0", ":k_0_0", "c_0"]
+    return RoutePath.from_pieces(pieces, lanes, [13.9] * 5, [3.2] * 5, 0.5)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.floats(-30.0, 130.0, allow_nan=False),
+    st.floats(-30.0, 130.0, allow_nan=False),
+)
+def test_junction_within_finds_any_point_on_an_internal_lane(from_s, to_s):
+    # oracle: the points the stretch covers (one point of slack after it, as the
+    # follower's guard has it), each read by its lane's id
+    path = junction_path()
+    n = len(path.lane_index)
+    i0 = min(max(int(from_s // path.spacing_m), 0), n)
+    i1 = min(max(int(to_s // path.spacing_m) + 2, 0), n)
+    expected = any(path.lane_ids[int(path.lane_index[i])].startswith(":") for i in range(i0, i1))
+    assert path.junction_within(from_s, to_s) is expected
+
+
+def test_junction_within_on_the_road_and_in_the_junction():
+    path = junction_path()
+    assert not path.junction_within(2.0, 15.0)  # on the first road only
+    assert path.junction_within(15.0, 25.0)  # into the first junction
+    assert path.junction_within(25.0, 30.0)  # inside it
+    assert not path.junction_within(45.0, 55.0)  # the second road
+    assert not path.junction_within(50.0, 40.0)  # an empty stretch

@@ -97,6 +97,7 @@ from platoon_sumo.kernels.follower import (
     krauss_safe_speed,
     perceive_kernel,
     pursuit,
+    start_gate_kernel,
     trail_kernel,
 )
 from platoon_sumo.kernels.following import LANE_UNREAD, LOST, RAISE, following_step_kernel
@@ -529,19 +530,19 @@ class LaserFollower:
         else:  # start only on a rear on the own route
             gate = p.tracker
             rows = b.rows[:n_rows]
+            # the start gate first (as the tracker has it): fewer projections
+            gated = start_gate_kernel(rows, gate.start_range_max_m, gate.start_lateral_m)
             keep = [
                 j
-                for j, r in enumerate(rows.tolist())
-                # the start gate first (as the tracker has it): fewer projections
-                if 0.0 < r[0] <= gate.start_range_max_m
-                and abs(r[1]) <= gate.start_lateral_m
-                and r[6] == 0.0
-                and self._in_corridor(obs, ox + hc * r[0] - hs * r[1], oy + hs * r[0] + hc * r[1])
-            ]
-            own_v = (obs.speed_mps * c, obs.speed_mps * s)
-            pose = (ox, oy, heading)
-            points = b.pts[:n_pts].copy()  # the buffer is the next scan's
-            k = tracker.step_rows(obs.time_s, points, rows[keep], pose, own_v, 0.5 * width)
+                for j, r in zip(gated.tolist(), rows[gated].tolist(), strict=True)
+                if self._in_corridor(obs, ox + hc * r[0] - hs * r[1], oy + hs * r[0] + hc * r[1])
+            ] if gated.size else []  # fmt: skip
+            k = -1  # no rear to start on (most scans of a lost follower): nothing changes
+            if keep:
+                own_v = (obs.speed_mps * c, obs.speed_mps * s)
+                pose = (ox, oy, heading)
+                points = b.pts[:n_pts].copy()  # the buffer is the next scan's
+                k = tracker.step_rows(obs.time_s, points, rows[keep], pose, own_v, 0.5 * width)
         hit = k >= 0
         inside = tracker.active and self._in_corridor(obs, *tracker.position)
         if not tracker.active or inside:

@@ -156,6 +156,21 @@ def arc_clearance_kernel(
 
 
 @njit(cache=True)
+def start_gate_kernel(rows: np.ndarray, range_max: float, lateral_max: float) -> np.ndarray:
+    """The candidate rows (``CANDIDATE_COLUMNS``) a new track may start on: ahead of the
+    sensor within ``range_max``, within ``lateral_max`` of its axis, not an alternative
+    fit (``RearTracker._start``'s gate), in row order."""
+    keep = np.empty(rows.shape[0], np.int64)
+    n = 0
+    for j in range(rows.shape[0]):
+        x = rows[j, 0]
+        if 0.0 < x <= range_max and abs(rows[j, 1]) <= lateral_max and rows[j, 6] == 0.0:
+            keep[n] = j
+            n += 1
+    return keep[:n]
+
+
+@njit(cache=True)
 def _trail(
     buf: np.ndarray,
     lo: int,

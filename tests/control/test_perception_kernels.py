@@ -15,6 +15,8 @@ from hypothesis import strategies as st
 
 from platoon_sumo.control import perception as new
 from platoon_sumo.control.laser_follower import LaserFollower, LaserFollowerParams
+from platoon_sumo.kernels.follower import start_gate_kernel
+from platoon_sumo.kernels.perception import CANDIDATE_COLUMNS
 from platoon_sumo.sensors.laser import LaserConfig, LaserScan
 from platoon_sumo.sensors.raycast import cast_rays
 from tests.control import reference_perception as ref
@@ -187,3 +189,29 @@ def test_tracker_matches_the_reference(seed, confirm, missed):
             or abs(a.heading_hint(0.3) - b.heading_hint(0.3)) < TOL
         )
         assert a.last_candidate is b.last_candidate
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-5.0, 40.0, allow_nan=False),
+            st.floats(-6.0, 6.0, allow_nan=False),
+            st.booleans(),
+        ),
+        max_size=12,
+    )
+)
+def test_start_gate_keeps_the_rows_the_tracker_may_start_on(items):
+    gate = new.TrackerParams()
+    rows = np.zeros((len(items), len(CANDIDATE_COLUMNS)))
+    for j, (x, y, alternative) in enumerate(items):
+        rows[j, 0], rows[j, 1], rows[j, 6] = x, y, float(alternative)
+    # oracle: the tracker's own start gate, candidate by candidate
+    expected = [
+        j
+        for j, (x, y, alternative) in enumerate(items)
+        if 0.0 < x <= gate.start_range_max_m and abs(y) <= gate.start_lateral_m and not alternative
+    ]
+    kept = start_gate_kernel(rows, gate.start_range_max_m, gate.start_lateral_m)
+    assert kept.tolist() == expected
