@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from platoon_sumo.kernels.route import (
     lane_step_kernel,
     path_blocks,
+    project_members,
     project_pruned,
     same_lane_kernel,
 )
@@ -448,15 +449,25 @@ class RoutePath:
         if s_hint_m is None:
             hint, window, use_hint = 0.0, 0.0, False
         else:
-            hint, window, use_hint = float(s_hint_m), float(window_m), True
-            if not (math.isfinite(hint) and 0.0 <= window < math.inf):
-                raise ValueError(
-                    f"project: s_hint_m must be finite and window_m >= 0 and finite, got "
-                    f"{s_hint_m!r} and {window_m!r}"
-                )
+            hint, window, use_hint = _checked_hint(s_hint_m, window_m), float(window_m), True
         return project_pruned(
             self._xy_c, self._blocks, self._lane_width_c, self.spacing_m, self.length_m,
             use_hint, hint, window, float(x_m), float(y_m),
+        )  # fmt: skip
+
+    def project_sl_many(
+        self, x_m: FloatArray, y_m: FloatArray, s_hint_m: float, window_m: float = 20.0
+    ) -> tuple[FloatArray, FloatArray]:
+        """``project_sl`` of many points with one hint, in one kernel call: (arc lengths,
+        lateral offsets)."""
+        hint = _checked_hint(s_hint_m, window_m)
+        n = len(x_m)
+        return project_members(
+            self._xy_c, np.array([0, len(self._xy_c)]), self._blocks,
+            np.array([0, len(self._blocks)]), self._lane_width_c,
+            np.array([[self.spacing_m, self.length_m]]), np.zeros(n, dtype=np.int64),
+            np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64),
+            np.full(n, hint), np.full(n, float(window_m)),
         )  # fmt: skip
 
     def curvature_1pm(
@@ -481,3 +492,15 @@ class RoutePath:
         width = max(1, round(smoothing_m / self.spacing_m))
         kernel = np.ones(width) / width
         return np.asarray(np.convolve(kappa, kernel, mode="same"), dtype=np.float64)
+
+
+def _checked_hint(s_hint_m: float, window_m: float) -> float:
+    """A projection's hint as a float; a ValueError unless it and the window are finite
+    and the window is not negative."""
+    hint = float(s_hint_m)
+    if not (math.isfinite(hint) and 0.0 <= float(window_m) < math.inf):
+        raise ValueError(
+            f"project: s_hint_m must be finite and window_m >= 0 and finite, got "
+            f"{s_hint_m!r} and {window_m!r}"
+        )
+    return hint

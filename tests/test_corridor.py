@@ -15,7 +15,11 @@ from shapely.ops import unary_union
 
 from platoon_sumo.geometry import rectangle_corners
 from platoon_sumo.kernels.corridor import corridor_intrusions, empty_outputs
-from platoon_sumo.loop.obstacles import crosses_before_arrival, sidestep_clearing
+from platoon_sumo.loop.obstacles import (
+    CROSSING_DECEL_MPS2,
+    crosses_before_arrival,
+    sidestep_clearing,
+)
 from platoon_sumo.path import RoutePath
 
 
@@ -193,3 +197,33 @@ def test_no_sidestep_across_the_middle_beyond_the_lane_or_behind_the_front():
     assert sidestep((15.0, 0.0, 1.2, 4.5, 1.8)) == 0.0  # across the corridor
     assert sidestep((15.0, 1.1, 0.0, 4.5, 1.8)) == 0.0  # 0.7 m in: beyond the lane's room
     assert sidestep((5.0, 1.65, 0.0, 4.5, 1.8)) == 0.0  # beside the body, not ahead
+
+
+def _crosses_one(gap, speed, width, other_speed, cos, other_length, other_width):
+    """The rule for one hit, written out: sideways speed, the body's extent across the
+    corridor, can it stop in it, is it through first."""
+    sin = math.sqrt(max(1.0 - cos * cos, 0.0))
+    sideways = other_speed * sin
+    if sideways <= 0.0:
+        return False
+    across = width + other_length * sin + other_width * abs(cos)
+    if sideways**2 / (2.0 * CROSSING_DECEL_MPS2) < across:
+        return False
+    return across / sideways < gap / max(speed, 1e-3)
+
+
+_HIT = st.tuples(
+    st.floats(0.0, 60.0), st.floats(0.0, 20.0), st.floats(0.5, 4.0), st.floats(0.0, 20.0),
+    st.floats(-1.0, 1.0), st.floats(0.3, 18.0), st.floats(0.3, 3.0),
+)  # fmt: skip
+"""(gap, speed, corridor width, other's speed, cos of its heading, its length, width)"""
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_HIT, min_size=1, max_size=20))
+def test_the_crossing_rule_over_many_hits_is_the_rule_for_each(hits):
+    """The obstacles stage decides all of a step's hits in one call: each answer is the
+    one the rule gives that hit alone."""
+    columns = [np.array(c) for c in zip(*hits, strict=True)]
+    got = crosses_before_arrival(*columns)
+    assert got.tolist() == [_crosses_one(*hit) for hit in hits]

@@ -149,6 +149,32 @@ def test_scalar_lookups_match_the_numpy_reference(name, s, target_s, offset, tar
     assert path.length_m == ref.length_m(path)
 
 
+@settings(max_examples=200, deadline=None)
+@given(
+    name=st.sampled_from(sorted(PATHS)),
+    points=st.lists(st.tuples(st.floats(-30.0, 200.0), st.floats(-30.0, 60.0)), max_size=12),
+    hint=st.floats(-20.0, 300.0),
+    window=st.floats(0.0, 60.0),
+)
+def test_many_points_project_as_each_does_alone(name, points, hint, window):
+    """``project_sl_many`` (one kernel call, one hint) gives each point's projection as
+    the numpy reference finds it."""
+    path = PATHS[name]()
+    xy = np.array(points, dtype=np.float64).reshape(-1, 2)
+    s, lateral = path.project_sl_many(xy[:, 0], xy[:, 1], hint, window)
+    assert s.shape == lateral.shape == (len(points),)
+    for (x, y), got_s, got_lateral in zip(points, s.tolist(), lateral.tolist(), strict=True):
+        want = ref.project(path, x, y, hint, window)
+        assert math.isclose(got_s, want.s_m, abs_tol=1e-9)
+        assert math.isclose(got_lateral, want.lateral_offset_m, abs_tol=1e-9)
+    for bad_hint, bad_window in ((math.nan, 10.0), (10.0, -1.0)):
+        try:
+            path.project_sl_many(xy[:, 0], xy[:, 1], bad_hint, bad_window)
+        except ValueError:
+            continue
+        raise AssertionError(f"no error for hint {bad_hint}, window {bad_window}")
+
+
 def test_projection_with_integer_arguments_and_bad_hints():
     path = lane_change_path()
     assert path.project(50, 1, 40, 20) == path.project(50.0, 1.0, 40.0, 20.0)

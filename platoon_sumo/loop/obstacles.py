@@ -197,32 +197,38 @@ class ObstaclesAhead:
             (later >= 0) | ~sumo_drives[who] | (gap > leader_gap[who] - slice_m[who])
         )
         kept = np.flatnonzero(~skip)
-        order = kept[np.lexsort((rect[kept], gap[kept], who[kept]))]
-        for k in order.tolist():  # per member, nearest first
-            j = int(who[k])
-            m = members[j]
-            if m.obstacle_ahead is not None:
+        order = kept[np.lexsort((rect[kept], gap[kept], who[kept]))]  # per member, nearest first
+        j_of, i_of, ahead_at = who[order], owner[order], later[order]
+        will_stop = entry[order]
+        if len(standing):
+            will_stop = will_stop | ((ahead_at >= 0) & standing[np.maximum(ahead_at, 0)])
+        cos, other_speed = along[order], world.speed_mps[i_of]
+        passes = will_stop | ~crosses_before_arrival(
+            gap[order], speed[j_of], 2.0 * constants[j_of, 4], other_speed, cos,
+            world.length_m[i_of], world.width_m[i_of],
+        )  # fmt: skip
+        speed_along = np.where(will_stop, 0.0, np.maximum(other_speed * cos, 0.0))
+        picks = np.flatnonzero(passes)
+        lane_ids, found = world.lane_ids, [False] * len(members)
+        for j, i, g, v in zip(
+            j_of[picks].tolist(), i_of[picks].tolist(), gap[order][picks].tolist(),
+            speed_along[picks].tolist(), strict=True,
+        ):  # fmt: skip
+            if found[j]:
                 continue
-            i = int(owner[k])
-            will_stop = bool(later[k] >= 0 and standing[later[k]]) or bool(entry[k])
-            other = world.ids[i]
+            own_lane, other_lane = lane_ids[selves[j]], lane_ids[i]
             # a bridge over the path is no obstacle. Compared with the member's own lane,
             # so a body beyond the next junction is not seen until the member reaches the
             # edge before it; compared with the route's lane at the hit instead, platoon
             # cars on osm_spreewaldring's invented on-ramp were held for good (8 of 12
             # arrived, not 12): open
-            if not network.same_level(world.lane_ids[selves[j]], world.lane_ids[i]):
+            if not network.same_level(own_lane, other_lane):
                 continue
-            cos = float(along[k])
-            if not will_stop and crosses_before_arrival(
-                float(gap[k]), float(speed[j]), 2.0 * constants[j, 4], float(world.speed_mps[i]),
-                cos, float(world.length_m[i]), float(world.width_m[i]),
-            ):  # fmt: skip
-                continue
-            speed_along = 0.0 if will_stop else max(float(world.speed_mps[i]) * cos, 0.0)
-            m.obstacle_ahead = VehicleAhead(other, float(gap[k]), speed_along)
-            lanes = (world.lane_ids[selves[j]], world.lane_ids[i])
-            if world.speed_mps[i] < STANDING_MPS and any(x.startswith(":") for x in lanes):
+            found[j] = True
+            m = members[j]
+            m.obstacle_ahead = VehicleAhead(world.ids[i], g, v)
+            inside = own_lane.startswith(":") or other_lane.startswith(":")
+            if world.speed_mps[i] < STANDING_MPS and inside:
                 m.sidestep_m = sidestep_clearing(
                     m.path, float(table[j, 1]), float(table[j, 2]), float(table[j, 3]),
                     float(constants[j, 4]), 0.5 * m.platoon.config.vehicle.width_m, rects[i],
@@ -276,20 +282,25 @@ class ObstaclesAhead:
         assert self._lanes is not None
         members_ids: set[str] = set()
         occupants: dict[str, list[tuple[str, float, float, float]]] = {}
-        on_lane: dict[str, list[int]] | None = None
+        on_lane: dict[str, list[int]] = {}
         found: list[tuple[int, int, int, float]] = []
         held, self._yielding = self._yielding, {}
-        for j, m in enumerate(members):
+        near_end = []  # members near their lane's end: (index, member, world row, lane)
+        for j, (m, corridor_m) in enumerate(zip(members, table[:, 3].tolist(), strict=True)):
             end_m = m.link_distance_m
+            if end_m is None or end_m > corridor_m:
+                continue
             me = world.index[m.id]
             lane = world.lane_ids[me]
-            if end_m is None or not lane or lane[0] == ":" or end_m > table[j, 3]:
-                continue
-            if on_lane is None:  # built once a member is near its lane's end
-                members_ids = {m.id for m in ctx.fleet}
-                on_lane = {}
-                for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
+            if lane and lane[0] != ":":
+                near_end.append((j, m, me, lane))
+        if near_end:  # the moving cars on those members' lanes
+            members_ids = {m.id for m in ctx.fleet}
+            wanted = {lane for *_, lane in near_end}
+            for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
+                if world.lane_ids[i] in wanted:
                     on_lane.setdefault(world.lane_ids[i], []).append(i)
+        for j, m, me, lane in near_end:
             # a car beside has its front within a car's length along the lane, so
             # within that and the lane's width in the plane: SUMO is asked only then
             reach = backend.lane_width(lane) + m.platoon.config.vehicle.length_m
@@ -550,29 +561,31 @@ def _owners(cars: IntArray, stands: NDArray[np.bool_]) -> tuple[IntArray, NDArra
 
 
 def crosses_before_arrival(
-    gap_m: float,
-    speed_mps: float,
-    corridor_width_m: float,
-    other_speed_mps: float,
-    cos_heading: float,
-    other_length_m: float,
-    other_width_m: float,
-) -> bool:
+    gap_m: FloatArray | float,
+    speed_mps: FloatArray | float,
+    corridor_width_m: FloatArray | float,
+    other_speed_mps: FloatArray | float,
+    cos_heading: FloatArray | float,
+    other_length_m: FloatArray | float,
+    other_width_m: FloatArray | float,
+) -> NDArray[np.bool_]:
     """Will a vehicle moving across the corridor have left it before this one gets
     there, even if it starts braking now? Its sideways speed must carry its whole body
     (as projected across the corridor) over the corridor's width before this vehicle
     covers the gap at its current speed, and its braking distance at
     `CROSSING_DECEL_MPS2` must be longer than that crossing. A car crossing a junction
     ahead at speed is not a reason to brake in the junction; one standing, slow (it may
-    stop in the way) or driving along the corridor stays an obstacle."""
-    sin = math.sqrt(max(1.0 - cos_heading * cos_heading, 0.0))
+    stop in the way) or driving along the corridor stays an obstacle. Elementwise over
+    arrays (one answer per hit)."""
+    cos = np.asarray(cos_heading, dtype=np.float64)
+    sin = np.sqrt(np.maximum(1.0 - cos * cos, 0.0))
     sideways = other_speed_mps * sin
-    if sideways <= 0.0:
-        return False
-    across = corridor_width_m + other_length_m * sin + other_width_m * abs(cos_heading)
-    if sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across:
-        return False
-    return across / sideways < gap_m / max(speed_mps, 1e-3)
+    moving = sideways > 0.0
+    across = corridor_width_m + other_length_m * sin + other_width_m * np.abs(cos)
+    stops_after = ~(sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sooner = across / sideways < gap_m / np.maximum(speed_mps, 1e-3)
+    return np.asarray(moving & stops_after & sooner)
 
 
 def sidestep_clearing(
@@ -599,8 +612,7 @@ def sidestep_clearing(
         n = max(2, math.ceil(math.hypot(*(b - a)) / OUTLINE_STEP_M) + 1)
         points.append(a + np.linspace(0.0, 1.0, n)[:, None] * (b - a))
     outline = np.concatenate(points)
-    sl = np.array([path.project_sl(float(x), float(y), s_m) for x, y in outline])
-    s, d = sl[:, 0], sl[:, 1]
+    s, d = path.project_sl_many(outline[:, 0], outline[:, 1], s_m)
     inside = (s >= s_m) & (s <= s_m + length_m) & (np.abs(d - offset_m) < corridor_half_m)
     if not inside.any():
         return 0.0

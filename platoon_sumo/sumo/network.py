@@ -63,6 +63,7 @@ class Network:
         self._normal_edges = {
             e.getID(): e for e in self._net.getEdges(withInternal=False) if e.getFunction() == ""
         }
+        self._lane_nodes: dict[str, frozenset[str]] = {}
 
     def edge_suggestion(self, edge_id: str) -> str | None:
         return did_you_mean(edge_id, self._normal_edges)
@@ -138,13 +139,22 @@ class Network:
 
     @functools.lru_cache(maxsize=65536)  # noqa: B019 - one Network per run, bounded cache
     def lane_nodes(self, lane_id: str) -> frozenset[str]:
-        """Junctions a lane touches: its edge's two ends, or the junction it lies in."""
+        """Junctions a lane touches: its edge's two ends, or the junction it lies in
+        (kept per lane: the loop asks for the lanes around the platoons every step)."""
+        known = self._lane_nodes.get(lane_id)
+        if known is not None:
+            return known
         if lane_id.startswith(":"):
-            return frozenset({lane_id[1:].rsplit("_", 2)[0]})
-        edge = self._normal_edges.get(lane_id.rsplit("_", 1)[0])
-        if edge is None:
-            return frozenset()
-        return frozenset({edge.getFromNode().getID(), edge.getToNode().getID()})
+            nodes = frozenset({lane_id[1:].rsplit("_", 2)[0]})
+        else:
+            edge = self._normal_edges.get(lane_id.rsplit("_", 1)[0])
+            nodes = (
+                frozenset()
+                if edge is None
+                else frozenset({edge.getFromNode().getID(), edge.getToNode().getID()})
+            )
+        self._lane_nodes[lane_id] = nodes
+        return nodes
 
     def same_level(self, lane_a: str, lane_b: str) -> bool:
         """Can vehicles on these lanes touch? Lanes that cross without sharing a junction
