@@ -292,3 +292,107 @@ def following_step_kernel(
             var_p, var_v, dropped, has_since, hit, lo, hi, last_x, last_y, fallback_s,
             cmd, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry, lane, keep,
             nan, nan, nan, nan)  # fmt: skip
+
+
+OUTPUT_SIZE = 37
+"""The number of values ``following_step_kernel`` returns (a row of
+``following_batch_kernel``'s output)."""
+
+
+@njit(cache=True)
+def following_batch_kernel(
+    xy: np.ndarray,
+    xy_starts: np.ndarray,
+    blocks: np.ndarray,
+    block_starts: np.ndarray,
+    widths: np.ndarray,
+    width_starts: np.ndarray,
+    codes: np.ndarray,
+    code_starts: np.ndarray,
+    spans: np.ndarray,
+    span_starts: np.ndarray,
+    shift: np.ndarray,
+    shift_starts: np.ndarray,
+    geometry: np.ndarray,
+    path_of: np.ndarray,
+    ranges: np.ndarray,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    consts: np.ndarray,
+    perception: np.ndarray,
+    state: np.ndarray,
+    pts: np.ndarray,
+    rows: np.ndarray,
+    cand_pts: np.ndarray,
+    cand_row: np.ndarray,
+    trail: np.ndarray,
+    law: np.ndarray,
+    params: np.ndarray,
+    slot_of: np.ndarray,
+    scalars: np.ndarray,
+) -> np.ndarray:
+    """``following_step_kernel`` for many followers in one call. Follower j is on path
+    ``p = path_of[j]``: its points are rows ``xy_starts[p]:xy_starts[p + 1]`` of ``xy``,
+    its blocks, lane widths, lane codes, lane-change spans and lane shifts the rows of
+    ``blocks``, ``widths``, ``codes``, ``spans`` and ``shift`` between their starts, its
+    geometry row p of ``geometry``. It scans ``ranges[j]`` and keeps its state in row
+    ``slot_of[j]`` of the pooled arrays (rays' cosines and sines, constants, perception
+    parameters, track state, candidate, trail, spacing law and parameters); ``pts`` and
+    ``rows`` are the shared scratch buffers. ``scalars[j]`` holds the remaining
+    arguments in order (time .. since; integers and flags as numbers). Returns row j:
+    the values of its ``following_step_kernel`` call, in order, as numbers."""
+    n = path_of.shape[0]
+    out = np.empty((n, OUTPUT_SIZE))
+    for j in range(n):
+        p = path_of[j]
+        q = slot_of[j]
+        v = scalars[j]
+        res = following_step_kernel(
+            xy[xy_starts[p] : xy_starts[p + 1]], blocks[block_starts[p] : block_starts[p + 1]],
+            widths[width_starts[p] : width_starts[p + 1]],
+            codes[code_starts[p] : code_starts[p + 1]], spans[span_starts[p] : span_starts[p + 1]],
+            shift[shift_starts[p] : shift_starts[p + 1]], geometry[p], ranges[j], cos_a[q],
+            sin_a[q], consts[q], perception[q], state[q], pts, rows, cand_pts[q], cand_row[q],
+            trail[q], law[q], params[q], v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8],
+            v[9], v[10], v[11], v[12], v[13], v[14], int(v[15]), int(v[16]), v[17], int(v[18]),
+            int(v[19]), v[20], v[21], v[22] != 0.0, v[23],
+        )  # fmt: skip
+        row = out[j]
+        row[0] = res[0]
+        row[1] = res[1]
+        row[2] = res[2]
+        row[3] = res[3]
+        row[4] = res[4]
+        row[5] = res[5]
+        row[6] = res[6]
+        row[7] = res[7]
+        row[8] = res[8]
+        row[9] = res[9]
+        row[10] = res[10]
+        row[11] = res[11]
+        row[12] = res[12]
+        row[13] = res[13]
+        row[14] = res[14]
+        row[15] = res[15]
+        row[16] = res[16]
+        row[17] = res[17]
+        row[18] = res[18]
+        row[19] = res[19]
+        row[20] = res[20]
+        row[21] = res[21]
+        row[22] = res[22]
+        row[23] = res[23]
+        row[24] = res[24]
+        row[25] = res[25]
+        row[26] = res[26]
+        row[27] = res[27]
+        row[28] = res[28]
+        row[29] = res[29]
+        row[30] = res[30]
+        row[31] = res[31]
+        row[32] = res[32]
+        row[33] = res[33]
+        row[34] = res[34]
+        row[35] = res[35]
+        row[36] = res[36]
+    return out
