@@ -53,7 +53,11 @@ Usage::
 (and so do its own SUMO-alone and no-platoons baselines). `--budget-min` skips the cases
 not yet started once the bench has run that long (they are reported as not measured).
 `--timings` adds, below the table, each case's CPU by stage from one more, untimed run
-with `platoon-sumo run --timings` (the timed runs never read the stage clock).
+with `platoon-sumo run --timings` (the timed runs never read the stage clock), made at
+the same time as a `--no-platoons --timings` run of the same traffic (one on each core,
+so that both see the same host load); it also gives how much longer SUMO's step takes
+with the platoon cars, per platoon vehicle-step: a part of the bench's figure that is
+not the loop's.
 """
 
 from __future__ import annotations
@@ -489,31 +493,50 @@ def table(
 
 
 def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Path) -> list[str]:
-    """One more (untimed) run of each measured case with `--timings`: its costliest parts
-    per platoon vehicle-step, as lines for the block."""
+    """One more (untimed) run of each measured case with `--timings`, side by side with a
+    `--no-platoons --timings` run of the same traffic (one on each core, so that both see
+    the same host load): its costliest parts per platoon vehicle-step, and how much
+    longer SUMO's step takes with the platoon cars than without, as lines for the
+    block."""
     lines = [
         "",
         "CPU per platoon vehicle-step by part (one more run of each case with `platoon-sumo "
-        "run --timings`, not timed; docs/outputs.md, `timings.csv`):",
+        "run --timings`, not timed, at the same time as one with `--no-platoons "
+        "--timings`; docs/outputs.md, `timings.csv`):",
     ]
     for c, r in cosim.items():
-        out = results / f"timings_{c}"
-        shutil.rmtree(out, ignore_errors=True)
-        print(f"timings: {c} platoon vehicles", flush=True)
-        done = subprocess.run(
-            cli("run", str(scenarios[c]), "--out", str(out), "--quiet", "--timings",
-                "--end", repr(r.end_s)),
-            capture_output=True, text=True,
-        )  # fmt: skip
-        if done.returncode != 0:
-            raise SystemExit(f"timings run failed: {done.stderr.strip() or done.stdout.strip()}")
-        parts = pd.read_csv(out / "timings.csv")
+        outs = {"with": results / f"timings_{c}", "without": results / f"timings_{c}_bare"}
+        print(f"timings: {c} platoon vehicles, and without them", flush=True)
+        commands = {
+            "with": cli("run", str(scenarios[c]), "--end", repr(r.end_s)),
+            "without": cli("run", str(scenarios[c]), "--no-platoons", "--end", repr(r.end_s)),
+        }
+        running = {}
+        for name, command in commands.items():
+            shutil.rmtree(outs[name], ignore_errors=True)
+            running[name] = subprocess.Popen(
+                [*command, "--out", str(outs[name]), "--quiet", "--timings"],
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            )  # fmt: skip
+        for name, process in running.items():
+            output, _ = process.communicate()
+            if process.returncode != 0:
+                raise SystemExit(f"timings run ({name} platoons) failed: {output.strip()}")
+        parts = pd.read_csv(outs["with"] / "timings.csv")
+        bare = pd.read_csv(outs["without"] / "timings.csv")
         ours = parts[~parts["kind"].isin([SUMO, OUTSIDE])]
+        sumo = parts[parts["kind"] == SUMO]
+        step_s, bare_step_s = sumo["cpu_s"].sum(), bare.loc[bare["kind"] == SUMO, "cpu_s"].sum()
+        # the platoon vehicle-steps, from SUMO's step: its CPU over its cost per one
+        vehicle_steps = step_s / sumo["us_per_platoon_vehicle_step"].sum() * 1e6
+        extra_us = (step_s - bare_step_s) / vehicle_steps * 1e6
         per = parts.set_index("part")["us_per_platoon_vehicle_step"]
         shown = ", ".join(f"{name} {per[name]:.1f}" for name in parts["part"].head(9))
         lines.append(
             f"- {c} platoon vehicles: the loop's own "
-            f"{ours['us_per_platoon_vehicle_step'].sum():.0f} µs; {shown} µs"
+            f"{ours['us_per_platoon_vehicle_step'].sum():.0f} µs; SUMO's step "
+            f"{extra_us:.0f} µs more than without the platoon cars ({step_s:.1f} against "
+            f"{bare_step_s:.1f} s); {shown} µs"
         )
     return lines
 
@@ -573,7 +596,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--timings", action="store_true",
         help="after the timed rounds, one more run of each case with `platoon-sumo run "
-        "--timings` (not timed) for the CPU of each stage, reported below the table",
+        "--timings` (not timed), beside one with `--no-platoons --timings`: the CPU of each "
+        "stage and SUMO's extra step, reported below the table",
     )  # fmt: skip
     parser.add_argument("--seed", type=int, default=42, help="SUMO, demand and route seed")
     parser.add_argument("--grid", type=int, default=10, help="junctions per side")
