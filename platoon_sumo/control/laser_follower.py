@@ -112,10 +112,13 @@ from platoon_sumo.kernels.follower import (
     trail_kernel,
 )
 from platoon_sumo.kernels.following import (
+    FOLLOWED,
     LANE_UNREAD,
     LOST,
     PARAM_NAMES,
     RAISE,
+    SKIPPED,
+    STATE_NAMES,
     following_batch_kernel,
     following_step_kernel,
 )
@@ -336,6 +339,8 @@ class LaserFollower:
         self._slot = -1
         self._pooled_buffers: _ScanBuffers | None = None
         self._pooled_law: FloatArray | None = None
+        self._joined = False
+        """Whether the pooled state row holds this follower's numbers (``_join_rows``)."""
         self._batched: list[float] | None = None
         """This step's values of ``following_batch_kernel`` (``step_many``)."""
         self.reset()
@@ -343,6 +348,7 @@ class LaserFollower:
     # ------------------------------------------------------------------ public API
 
     def reset(self) -> None:
+        self._joined = False
         self.tracker.reset()
         self._fallback.reset()
         self._trail_lo = self._trail_hi = 0
@@ -387,6 +393,8 @@ class LaserFollower:
     @property
     def track(self) -> TrackedPredecessor | None:
         """The confirmed predecessor track at the last step, or None."""
+        if self._joined:
+            self._leave_rows()
         if self._track is None and self._track_args is not None:
             self._track = TrackedPredecessor(*self._track_args)
         return self._track
@@ -394,11 +402,15 @@ class LaserFollower:
     @property
     def trail(self) -> FloatArray:
         """The stored trail of the predecessor's rear positions (world frame), (n, 2)."""
+        if self._joined:
+            self._leave_rows()
         return self._trail_buf[self._trail_lo : self._trail_hi].copy()
 
     # ------------------------------------------------------------------ step
 
     def step(self, observation: Observation) -> Command:
+        if self._joined:
+            self._leave_rows()
         self._begin(observation)
         return self._finish(observation, *self._fused_step(observation))
 
@@ -416,10 +428,14 @@ class LaserFollower:
             if type(c).step is not LaserFollower.step:
                 continue
             c._begin(obs)
-            if c._fusable(obs):
-                rows = c._pooled_rows(obs)
-                if rows is not None:
-                    batches.setdefault(rows, []).append(k)
+            rows = c._pooled_rows(obs) if c._fusable(obs, c._joined) else None
+            if rows is None:
+                if c._joined:
+                    c._leave_rows()
+                continue
+            if not c._joined:
+                c._join_rows()
+            batches.setdefault(rows, []).append(k)
         for rows, members in batches.items():
             _step_batch(rows, [controllers[k] for k in members], [observations[k] for k in members])
         commands = []
@@ -429,11 +445,20 @@ class LaserFollower:
                     commands.append(c.step(obs))
                     continue
                 out, c._batched = c._batched, None
-                if out is None:
+                if out is None:  # not in a batch
                     done = c._fused_step(obs)
-                else:
-                    assert c._pooled_buffers is not None  # _pooled_rows
-                    done = c._fused_apply(obs, c._pooled_buffers, out)
+                elif out[0] == FOLLOWED:  # booked in the rows: only what the command needs
+                    c._last_scan = c._clearance_scan = obs.scan
+                    c._in_view, c._blocked, c._measured_gap_m = bool(out[16]), bool(out[5]), out[24]
+                    c._track = None
+                    done = True, (out[22], out[23], int(out[31]), bool(out[32]))
+                else:  # booked as after a single call, from the rows as they were
+                    c._leave_rows()
+                    if out[0] == SKIPPED:
+                        done = c._fused_step(obs)
+                    else:
+                        assert c._pooled_buffers is not None  # _pooled_rows
+                        done = c._fused_apply(obs, c._pooled_buffers, out)
                 commands.append(c._finish(obs, *done))
             except Exception as exc:
                 raise MemberFailure(k, exc) from exc
@@ -524,18 +549,24 @@ class LaserFollower:
         )  # fmt: skip
         return self._fused_apply(obs, b, out)
 
-    def _fusable(self, obs: Observation) -> bool:
+    def _fusable(self, obs: Observation, joined: bool = False) -> bool:
         """Whether the fused kernel applies this step: a corridor, a new scan, an active
-        track on this route, room in the trail buffer."""
+        track on this route, room in the trail buffer (`joined`: the pooled rows hold the
+        track and the trail, and the batched kernel checks the room)."""
         scan = obs.scan
         return not (
             self.params.corridor_half_width_m is None
             or scan is None
             or scan is self._last_scan
-            or not self.tracker.active
             or obs.path is not self._route
-            or self._route_s is None
-            or self._trail_hi >= len(self._trail_buf)
+            or (
+                not joined
+                and (
+                    not self.tracker.active
+                    or self._route_s is None
+                    or self._trail_hi >= len(self._trail_buf)
+                )
+            )
         )
 
     def _fused_scalars(self, obs: Observation, scan: LaserScan) -> list[Any]:
@@ -614,6 +645,45 @@ class LaserFollower:
         if obs.path is not self._arrays_of:
             self._arrays_of, self._path_arrays = obs.path, obs.path.follower_kernel_arrays
         return rows
+
+    def _join_rows(self) -> None:
+        """Hand the numbers kept between steps to the pooled state row (``STATE_NAMES``):
+        the batched kernel books its following steps there, and the attributes below are
+        stale until ``_leave_rows``."""
+        assert self._rows is not None and self._pooled_buffers is not None
+        t, since, track = self.tracker, self._outside_since, self._track_args
+        self._rows.arrays["state_rows"][self._slot] = [
+            self._route_s, self._fallback._s_m, t.hits, t.missed, t.last_hit_s,
+            self._trail_lo, self._trail_hi, *self._trail_last, since is not None,
+            0.0 if since is None else since, 0.0, t.time_s, *t._x, t._position_variance,
+            t._velocity_variance, *self._mount, self._pooled_buffers.cand_n,
+            track is not None, *(track if track is not None else (0.0,) * 7),
+        ]  # fmt: skip
+        self._joined = True
+
+    def _leave_rows(self) -> None:
+        """The numbers the pooled state row holds back into the attributes."""
+        assert self._rows is not None and self._pooled_buffers is not None
+        (
+            route_s, fallback_s, hits, missed, last_hit_s, lo, hi, last_x, last_y, has_since,
+            since, hit, track_time, tx, ty, tvx, tvy, var_p, var_v, mount_x, mount_y,
+            mount_yaw, cand_n, has_track, *track,
+        ) = self._rows.arrays["state_rows"][self._slot].tolist()  # fmt: skip
+        t, b = self.tracker, self._pooled_buffers
+        self._route_s, self._fallback._s_m = route_s, fallback_s
+        t.hits, t.missed, t.last_hit_s = int(hits), int(missed), last_hit_s
+        t.time_s, t._x = track_time, (tx, ty, tvx, tvy)
+        t._position_variance, t._velocity_variance = var_p, var_v
+        if hit:
+            t._last = b.last_candidate
+        self._trail_lo, self._trail_hi, self._trail_last = int(lo), int(hi), (last_x, last_y)
+        self._outside_since = since if has_since else None
+        self._mount = (mount_x, mount_y, mount_yaw)
+        b.cand_n = int(cand_n)
+        if has_track:
+            range_m, bearing, rate, in_view, speed, rx, ry = track
+            self._track_args = (range_m, bearing, rate, bool(in_view), speed, rx, ry)
+        self._joined = False
 
     def bind(self, pool: FollowerRows, slot: int) -> None:
         """Work on rows `slot` of the pool's arrays from now on (``FollowerRows.join``,
@@ -947,7 +1017,7 @@ def _pool(rays: int, params: LaserFollowerParams) -> FollowerRows:
             "state": (STATE_SIZE,), "trail": (trail_rows, 2), "perception": (perception,),
             "params": (len(PARAM_NAMES),), "law": (len(LAW_NAMES),), "cos_a": (rays,),
             "sin_a": (rays,), "consts": (len(CONST_NAMES),), "cand_pts": (rays, 2),
-            "cand_row": (len(CANDIDATE_COLUMNS),),
+            "cand_row": (len(CANDIDATE_COLUMNS),), "state_rows": (len(STATE_NAMES),),
         })  # fmt: skip
         _PATHS[found] = PathTables(_PATH_TABLES)
     return found
@@ -962,20 +1032,24 @@ def _path_rows(path: object) -> tuple[np.ndarray, ...]:
 def _step_batch(
     rows: FollowerRows, followers: list[LaserFollower], observations: list[Observation]
 ) -> None:
-    """The fused steps of `followers` (all on `rows`) in one kernel call; each keeps its
-    values for ``step_many`` (``_batched``)."""
+    """The fused steps of `followers` (all joined to `rows`) in one kernel call; each
+    keeps its row of values for ``step_many`` (``_batched``)."""
     paths = _PATHS[rows]
     path_of = paths.numbers([obs.path for obs in observations], _path_rows)
     scans = [obs.scan for obs in observations]
     ranges = np.stack([scan.ranges for scan in scans if scan is not None])
-    scalars = np.array(
+    inputs = np.array(
         [
-            c._fused_scalars(obs, scan)
+            (
+                obs.time_s, obs.dt_s, obs.x_m, obs.y_m, obs.yaw_rad, obs.speed_mps,
+                obs.front_offset_m, obs.length_m, obs.lane_offset_m, c._look,
+                scan.origin_x_m, scan.origin_y_m, scan.heading_rad,
+            )
             for c, obs, scan in zip(followers, observations, scans, strict=True)
             if scan is not None
         ],
         dtype=np.float64,
-    )
+    )  # fmt: skip
     a = rows.arrays
     scratch_pts, scratch_rows = _scratch(rows.shapes["cos_a"][0])
     table, starts = paths.table, paths.starts
@@ -985,7 +1059,7 @@ def _step_batch(
         table("shift"), starts("shift"), table("geometry"), np.array(path_of, dtype=np.int64),
         ranges, a["cos_a"], a["sin_a"], a["consts"], a["perception"], a["state"], scratch_pts,
         scratch_rows, a["cand_pts"], a["cand_row"], a["trail"], a["law"], a["params"],
-        np.array([c._slot for c in followers], dtype=np.int64), scalars,
+        a["state_rows"], np.array([c._slot for c in followers], dtype=np.int64), inputs,
     )  # fmt: skip
     for c, values in zip(followers, out.tolist(), strict=True):
         c._batched = values

@@ -298,6 +298,32 @@ OUTPUT_SIZE = 37
 """The number of values ``following_step_kernel`` returns (a row of
 ``following_batch_kernel``'s output)."""
 
+SKIPPED = 4
+"""``following_batch_kernel``: the step did not run (no room left in the trail); the
+caller steps the follower itself."""
+
+STATE_NAMES = (
+    "route_s", "fallback_s", "hits", "missed", "last_hit_s", "trail_lo", "trail_hi",
+    "trail_last_x", "trail_last_y", "has_since", "since", "hit_since_joined", "track_time_s",
+    "track_x", "track_y", "track_vx", "track_vy", "track_var_p", "track_var_v", "mount_x",
+    "mount_y", "mount_yaw", "cand_n", "has_track", "track_range_m", "track_bearing_rad",
+    "track_range_rate_mps", "track_in_view", "track_speed_mps", "track_rear_x",
+    "track_rear_y",
+)  # fmt: skip
+"""A follower's numbers between steps in ``following_batch_kernel``'s ``state_rows``
+(the controller's attributes of those names while it is stepped there)."""
+(
+    S_ROUTE, S_FALLBACK, S_HITS, S_MISSED, S_LAST_HIT, S_LO, S_HI, S_LAST_X, S_LAST_Y,
+    S_HAS_SINCE, S_SINCE, S_HIT_SINCE_JOINED, S_TRACK_TIME, S_TX, S_TY, S_TVX, S_TVY,
+    S_VAR_P, S_VAR_V, S_MOUNT_X, S_MOUNT_Y, S_MOUNT_YAW, S_CAND_N, S_HAS_TRACK, S_RANGE,
+    S_BEARING, S_RANGE_RATE, S_IN_VIEW, S_LEAD_SPEED, S_RX, S_RY,
+) = range(len(STATE_NAMES))  # fmt: skip
+INPUT_NAMES = (
+    "time_s", "dt_s", "x_m", "y_m", "yaw_rad", "speed_mps", "front_offset_m", "length_m",
+    "lane_offset_m", "look_m", "scan_x_m", "scan_y_m", "scan_heading_rad",
+)  # fmt: skip
+"""A follower's inputs of one step in ``following_batch_kernel``'s ``inputs``."""
+
 
 @njit(cache=True)
 def following_batch_kernel(
@@ -328,34 +354,49 @@ def following_batch_kernel(
     trail: np.ndarray,
     law: np.ndarray,
     params: np.ndarray,
+    state_rows: np.ndarray,
     slot_of: np.ndarray,
-    scalars: np.ndarray,
+    inputs: np.ndarray,
 ) -> np.ndarray:
     """``following_step_kernel`` for many followers in one call. Follower j is on path
     ``p = path_of[j]``: its points are rows ``xy_starts[p]:xy_starts[p + 1]`` of ``xy``,
     its blocks, lane widths, lane codes, lane-change spans and lane shifts the rows of
     ``blocks``, ``widths``, ``codes``, ``spans`` and ``shift`` between their starts, its
-    geometry row p of ``geometry``. It scans ``ranges[j]`` and keeps its state in row
-    ``slot_of[j]`` of the pooled arrays (rays' cosines and sines, constants, perception
-    parameters, track state, candidate, trail, spacing law and parameters); ``pts`` and
-    ``rows`` are the shared scratch buffers. ``scalars[j]`` holds the remaining
-    arguments in order (time .. since; integers and flags as numbers). Returns row j:
-    the values of its ``following_step_kernel`` call, in order, as numbers."""
+    geometry row p of ``geometry``. It scans ``ranges[j]``, reads ``inputs[j]``
+    (``INPUT_NAMES``) and keeps what it keeps between steps in row ``slot_of[j]`` of
+    the pooled arrays (rays' cosines and sines, constants, perception parameters, track
+    filter, candidate, trail, spacing law and parameters) and of ``state_rows``
+    (``STATE_NAMES``); ``pts`` and ``rows`` are the shared scratch buffers.
+
+    Row j of the result holds the values of its ``following_step_kernel`` call, in
+    order, as numbers (status ``SKIPPED`` without a call: its trail is full). Only a
+    ``FOLLOWED`` step is booked in ``state_rows`` (as ``LaserFollower`` books it); for
+    any other status the row is left as it was, the arrays as the kernel left them, and
+    the caller books the values as after a single call."""
     n = path_of.shape[0]
     out = np.empty((n, OUTPUT_SIZE))
     for j in range(n):
         p = path_of[j]
         q = slot_of[j]
-        v = scalars[j]
+        v = inputs[j]
+        s = state_rows[q]
+        lo = int(s[S_LO])
+        hi = int(s[S_HI])
+        if hi >= trail.shape[1]:
+            out[j, :] = math.nan
+            out[j, 0] = SKIPPED
+            continue
+        time_s = v[0]
         res = following_step_kernel(
             xy[xy_starts[p] : xy_starts[p + 1]], blocks[block_starts[p] : block_starts[p + 1]],
             widths[width_starts[p] : width_starts[p + 1]],
             codes[code_starts[p] : code_starts[p + 1]], spans[span_starts[p] : span_starts[p + 1]],
             shift[shift_starts[p] : shift_starts[p + 1]], geometry[p], ranges[j], cos_a[q],
             sin_a[q], consts[q], perception[q], state[q], pts, rows, cand_pts[q], cand_row[q],
-            trail[q], law[q], params[q], v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8],
-            v[9], v[10], v[11], v[12], v[13], v[14], int(v[15]), int(v[16]), v[17], int(v[18]),
-            int(v[19]), v[20], v[21], v[22] != 0.0, v[23],
+            trail[q], law[q], params[q], time_s, v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8],
+            v[9], s[S_ROUTE], s[S_FALLBACK], v[10], v[11], v[12], int(s[S_HITS]),
+            int(s[S_MISSED]), s[S_LAST_HIT], lo, hi, s[S_LAST_X], s[S_LAST_Y],
+            s[S_HAS_SINCE] != 0.0, s[S_SINCE],
         )  # fmt: skip
         row = out[j]
         row[0] = res[0]
@@ -395,4 +436,47 @@ def following_batch_kernel(
         row[34] = res[34]
         row[35] = res[35]
         row[36] = res[36]
+        if res[0] != FOLLOWED:
+            continue
+        # booked as LaserFollower._fused_apply and RearTracker.record_step book it
+        s[S_ROUTE] = res[1]
+        s[S_MOUNT_X] = res[2]
+        s[S_MOUNT_Y] = res[3]
+        s[S_MOUNT_YAW] = res[4]
+        k = res[6]
+        s[S_CAND_N] = res[7]
+        s[S_TRACK_TIME] = time_s
+        s[S_TX] = res[8]
+        s[S_TY] = res[9]
+        s[S_TVX] = res[10]
+        s[S_TVY] = res[11]
+        s[S_VAR_P] = res[12]
+        s[S_VAR_V] = res[13]
+        if k < 0:
+            s[S_MISSED] += 1.0
+        else:
+            s[S_HITS] += 1.0
+            s[S_MISSED] = 0.0
+            s[S_LAST_HIT] = time_s
+            s[S_HIT_SINCE_JOINED] = 1.0
+        if res[15]:
+            if s[S_HAS_SINCE] == 0.0:
+                s[S_SINCE] = time_s
+            s[S_HAS_SINCE] = 1.0
+        else:
+            s[S_HAS_SINCE] = 0.0
+            s[S_SINCE] = 0.0
+        s[S_LO] = res[17]
+        s[S_HI] = res[18]
+        s[S_LAST_X] = res[19]
+        s[S_LAST_Y] = res[20]
+        s[S_FALLBACK] = res[21]
+        s[S_HAS_TRACK] = 1.0
+        s[S_RANGE] = res[27]
+        s[S_BEARING] = res[28]
+        s[S_RANGE_RATE] = res[25]
+        s[S_IN_VIEW] = res[16]
+        s[S_LEAD_SPEED] = res[26]
+        s[S_RX] = res[29]
+        s[S_RY] = res[30]
     return out
