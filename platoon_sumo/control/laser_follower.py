@@ -427,15 +427,9 @@ class LaserFollower:
         for k, (c, obs) in enumerate(zip(controllers, observations, strict=True)):
             if type(c).step is not LaserFollower.step:
                 continue
-            c._begin(obs)
-            rows = c._pooled_rows(obs) if c._fusable(obs, c._joined) else None
-            if rows is None:
-                if c._joined:
-                    c._leave_rows()
-                continue
-            if not c._joined:
-                c._join_rows()
-            batches.setdefault(rows, []).append(k)
+            rows = c._batch_entry(obs)
+            if rows is not None:
+                batches.setdefault(rows, []).append(k)
         for rows, members in batches.items():
             _step_batch(rows, [controllers[k] for k in members], [observations[k] for k in members])
         commands = []
@@ -451,7 +445,9 @@ class LaserFollower:
                     c._last_scan = c._clearance_scan = obs.scan
                     c._in_view, c._blocked, c._measured_gap_m = bool(out[16]), bool(out[5]), out[24]
                     c._track = None
-                    done = True, (out[22], out[23], int(out[31]), bool(out[32]))
+                    c.mode = "following"
+                    commands.append(c._command(out[22], out[23], None, int(out[31]), bool(out[32])))
+                    continue
                 else:  # booked as after a single call, from the rows as they were
                     c._leave_rows()
                     if out[0] == SKIPPED:
@@ -463,6 +459,21 @@ class LaserFollower:
             except Exception as exc:
                 raise MemberFailure(k, exc) from exc
         return commands
+
+    def _batch_entry(self, obs: Observation) -> FollowerRows | None:
+        """``_begin``; then the pool whose batched kernel takes this step (the follower's
+        numbers in its rows), or None (the numbers back in the attributes)."""
+        p = self.params
+        self._ahead_memo = self._corridor_memo = None  # reused within one step only
+        self._look = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        joined = self._joined
+        rows = self._pooled_rows(obs) if self._fusable(obs, joined) else None
+        if rows is None:
+            if joined:
+                self._leave_rows()
+        elif not joined:
+            self._join_rows()
+        return rows
 
     def _begin(self, obs: Observation) -> None:
         p = self.params
@@ -503,6 +514,13 @@ class LaserFollower:
             else:
                 self.mode = "stopping"
                 speed, yaw_rate = self._stop(obs)
+        return self._command(speed, yaw_rate, heading, lane_change, keep_lane)
+
+    def _command(
+        self, speed: float, yaw_rate: float, heading: float | None, lane_change: int,
+        keep_lane: bool,
+    ) -> Command:  # fmt: skip
+        """The step's command in the current mode (none but a stop while blocked)."""
         if self._blocked:
             speed, lane_change, heading, keep_lane = 0.0, 0, None, False
         if self.mode == "following":
@@ -638,7 +656,7 @@ class LaserFollower:
                 a[name][slot] = getattr(b, name)
                 setattr(b, name, a[name][slot])
             self._pooled_buffers = b
-        law = self._law(obs.limits)
+        law = self._law_array if obs.limits is self._law_limits else self._law(obs.limits)
         if law is not self._pooled_law:
             a["law"][slot] = law
             self._law_array = self._pooled_law = a["law"][slot]
