@@ -189,6 +189,15 @@ def check_controller(cls: object) -> str | None:
 CONTROLLERS: Registry[type[Controller]] = Registry("controller", check_controller)
 
 
+class MemberFailure(Exception):
+    """Raised by a ``step_many`` for the vehicle whose step failed: the `index` of its
+    observation in the group and the exception (`step_batch` then names that vehicle)."""
+
+    def __init__(self, index: int, cause: Exception):
+        super().__init__(index, cause)
+        self.index, self.cause = index, cause
+
+
 def step_batch(
     controllers: Sequence[Controller], observations: Sequence[Observation]
 ) -> list[Command]:
@@ -208,6 +217,9 @@ def step_batch(
             group = [observations[k] for k in indices]
             try:
                 out = many([controllers[k] for k in indices], group)
+            except MemberFailure as failed:
+                one = [group[failed.index]]
+                raise _failure(cls, one, failed.cause) from failed.cause
             except Exception as exc:
                 raise _failure(cls, group, exc) from exc
             for k, command in zip(indices, out, strict=True):
