@@ -86,6 +86,8 @@ from platoon_sumo.control.base import (
     GapPolicy,
     MemberFailure,
     Observation,
+    ObservationColumns,
+    ObservationRows,
     Telemetry,
 )
 from platoon_sumo.control.follower_rows import FollowerRows, PathTables
@@ -411,7 +413,7 @@ class LaserFollower:
     def step(self, observation: Observation) -> Command:
         if self._joined:
             self._leave_rows()
-        self._begin(observation)
+        self._begin(observation.speed_mps)
         return self._finish(observation, *self._fused_step(observation))
 
     @staticmethod
@@ -421,33 +423,47 @@ class LaserFollower:
         """``step`` for many followers: the fused steps of all that have one (see
         ``_fused_step``) in one kernel call (``kernels.following.following_batch_kernel``)
         on pooled rows of their arrays (``control.follower_rows``), then each follower's
-        step as ``step`` goes on from there, in order. A subclass that overrides ``step``
-        is stepped with it."""
+        step as ``step`` goes on from there, in order. Handed `ObservationRows` (the
+        loop's columns), a follower whose batched step keeps following never has its
+        `Observation` built. A subclass that overrides ``step`` is stepped with it."""
+        if isinstance(observations, ObservationRows):
+            cols, at = observations.columns, observations.rows
+        else:
+            cols, at = ObservationColumns.of(observations), range(len(observations))
         batches: dict[FollowerRows, list[int]] = {}
-        for k, (c, obs) in enumerate(zip(controllers, observations, strict=True)):
+        speed, path, scan, limits, width = (
+            cols.speed_mps,
+            cols.path,
+            cols.scan,
+            cols.limits,
+            cols.width_m,
+        )
+        for k, c in enumerate(controllers):
             if type(c).step is not LaserFollower.step:
                 continue
-            rows = c._batch_entry(obs)
+            r = at[k]
+            rows = c._batch_entry(speed[r], path[r], scan[r], limits[r], width[r])
             if rows is not None:
                 batches.setdefault(rows, []).append(k)
         for rows, members in batches.items():
-            _step_batch(rows, [controllers[k] for k in members], [observations[k] for k in members])
+            _step_batch(rows, [controllers[k] for k in members], cols, [at[k] for k in members])
         commands = []
-        for k, (c, obs) in enumerate(zip(controllers, observations, strict=True)):
+        for k, c in enumerate(controllers):
             try:
                 if type(c).step is not LaserFollower.step:
-                    commands.append(c.step(obs))
+                    commands.append(c.step(observations[k]))
                     continue
                 out, c._batched = c._batched, None
-                if out is None:  # not in a batch
-                    done = c._fused_step(obs)
-                elif out[0] == FOLLOWED:  # booked in the rows: only what the command needs
-                    c._last_scan = c._clearance_scan = obs.scan
+                if out is not None and out[0] == FOLLOWED:  # booked in the rows
+                    c._last_scan = c._clearance_scan = scan[at[k]]
                     c._in_view, c._blocked, c._measured_gap_m = bool(out[16]), bool(out[5]), out[24]
                     c._track = None
                     c.mode = "following"
                     commands.append(c._command(out[22], out[23], None, int(out[31]), bool(out[32])))
                     continue
+                obs = observations[k]
+                if out is None:  # not in a batch
+                    done = c._fused_step(obs)
                 else:  # booked as after a single call, from the rows as they were
                     c._leave_rows()
                     if out[0] == SKIPPED:
@@ -460,14 +476,22 @@ class LaserFollower:
                 raise MemberFailure(k, exc) from exc
         return commands
 
-    def _batch_entry(self, obs: Observation) -> FollowerRows | None:
+    def _batch_entry(
+        self,
+        speed_mps: float,
+        path: RoutePath,
+        scan: LaserScan | None,
+        limits: MotionLimits,
+        width_m: float,
+    ) -> FollowerRows | None:
         """``_begin``; then the pool whose batched kernel takes this step (the follower's
         numbers in its rows), or None (the numbers back in the attributes)."""
-        p = self.params
-        self._ahead_memo = self._corridor_memo = None  # reused within one step only
-        self._look = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        self._begin(speed_mps)
         joined = self._joined
-        rows = self._pooled_rows(obs) if self._fusable(obs, joined) else None
+        rows = None
+        if self._fusable(scan, path, joined):
+            assert scan is not None  # _fusable
+            rows = self._pooled_rows(scan, path, limits, width_m)
         if rows is None:
             if joined:
                 self._leave_rows()
@@ -475,10 +499,10 @@ class LaserFollower:
             self._join_rows()
         return rows
 
-    def _begin(self, obs: Observation) -> None:
+    def _begin(self, speed_mps: float) -> None:
         p = self.params
         self._ahead_memo = self._corridor_memo = None  # reused within one step only
-        self._look = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
+        self._look = max(p.lookahead_min_m, p.lookahead_time_s * speed_mps)
 
     def _finish(
         self, obs: Observation, perceived: bool, followed: tuple[float, float, int, bool] | None
@@ -551,7 +575,7 @@ class LaserFollower:
         active track on this route, room in the trail buffer. Returns (whether the scan
         was processed, the following command's speed, yaw rate, lane request and keep the
         lane, or None: the track is lost, or the kernel did not run)."""
-        if not self._fusable(obs):
+        if not self._fusable(obs.scan, obs.path):
             return False, None
         p, scan, tracker = self.params, obs.scan, self.tracker
         assert scan is not None  # _fusable
@@ -567,16 +591,15 @@ class LaserFollower:
         )  # fmt: skip
         return self._fused_apply(obs, b, out)
 
-    def _fusable(self, obs: Observation, joined: bool = False) -> bool:
+    def _fusable(self, scan: LaserScan | None, path: RoutePath, joined: bool = False) -> bool:
         """Whether the fused kernel applies this step: a corridor, a new scan, an active
         track on this route, room in the trail buffer (`joined`: the pooled rows hold the
         track and the trail, and the batched kernel checks the room)."""
-        scan = obs.scan
         return not (
             self.params.corridor_half_width_m is None
             or scan is None
             or scan is self._last_scan
-            or obs.path is not self._route
+            or path is not self._route
             or (
                 not joined
                 and (
@@ -638,12 +661,12 @@ class LaserFollower:
 
     # ------------------------------------------------------------------ pooled rows
 
-    def _pooled_rows(self, obs: Observation) -> FollowerRows | None:
+    def _pooled_rows(
+        self, scan: LaserScan, path: RoutePath, limits: MotionLimits, width_m: float
+    ) -> FollowerRows | None:
         """The pool this follower's fused step can run in, its arrays on their rows there
         (joining it first), or None (a scan of another size than the pool's)."""
-        scan = obs.scan
-        assert scan is not None  # _fusable
-        b = self._buffers(scan, self.params.predecessor_width_m or obs.width_m)
+        b = self._buffers(scan, self.params.predecessor_width_m or width_m)
         rows = self._rows
         if rows is None:
             rows = _pool(scan.ranges.size, self.params)
@@ -656,12 +679,12 @@ class LaserFollower:
                 a[name][slot] = getattr(b, name)
                 setattr(b, name, a[name][slot])
             self._pooled_buffers = b
-        law = self._law_array if obs.limits is self._law_limits else self._law(obs.limits)
+        law = self._law_array if limits is self._law_limits else self._law(limits)
         if law is not self._pooled_law:
             a["law"][slot] = law
             self._law_array = self._pooled_law = a["law"][slot]
-        if obs.path is not self._arrays_of:
-            self._arrays_of, self._path_arrays = obs.path, obs.path.follower_kernel_arrays
+        if path is not self._arrays_of:
+            self._arrays_of, self._path_arrays = path, path.follower_kernel_arrays
         return rows
 
     def _join_rows(self) -> None:
@@ -1048,26 +1071,27 @@ def _path_rows(path: object) -> tuple[np.ndarray, ...]:
 
 
 def _step_batch(
-    rows: FollowerRows, followers: list[LaserFollower], observations: list[Observation]
+    rows: FollowerRows, followers: list[LaserFollower], cols: ObservationColumns, at: list[int]
 ) -> None:
-    """The fused steps of `followers` (all joined to `rows`) in one kernel call; each
-    keeps its row of values for ``step_many`` (``_batched``)."""
+    """The fused steps of `followers` (all joined to `rows`; their observations rows `at`
+    of `cols`) in one kernel call; each keeps its row of values for ``step_many``
+    (``_batched``)."""
     paths = _PATHS[rows]
-    path_of = paths.numbers([obs.path for obs in observations], _path_rows)
-    scans = [obs.scan for obs in observations]
+    path_of = paths.numbers([cols.path[r] for r in at], _path_rows)
+    scans = [cols.scan[r] for r in at]
     ranges = np.stack([scan.ranges for scan in scans if scan is not None])
-    inputs = np.array(
-        [
-            (
-                obs.time_s, obs.dt_s, obs.x_m, obs.y_m, obs.yaw_rad, obs.speed_mps,
-                obs.front_offset_m, obs.length_m, obs.lane_offset_m, c._look,
-                scan.origin_x_m, scan.origin_y_m, scan.heading_rad,
-            )
-            for c, obs, scan in zip(followers, observations, scans, strict=True)
-            if scan is not None
-        ],
+    r = np.array(at, dtype=np.int64)
+    n = len(at)
+    sensor = np.array(
+        [(s.origin_x_m, s.origin_y_m, s.heading_rad) for s in scans if s is not None],
         dtype=np.float64,
-    )  # fmt: skip
+    ).reshape(n, 3)
+    inputs = np.column_stack([
+        np.full(n, float(cols.time_s)), np.full(n, cols.dt_s), cols.x_m[r], cols.y_m[r],
+        cols.yaw_rad[r], cols.speed_mps[r], cols.front_offset_m[r], cols.length_m[r],
+        cols.lane_offset_m[r], np.array([c._look for c in followers], dtype=np.float64),
+        sensor,
+    ])  # fmt: skip
     a = rows.arrays
     scratch_pts, scratch_rows = _scratch(rows.shapes["cos_a"][0])
     table, starts = paths.table, paths.starts
