@@ -198,8 +198,8 @@ class ObservationColumns:
     reading columns needs, under `Observation`'s names: one array entry (or list item)
     per vehicle."""
 
-    time_s: float
-    dt_s: float
+    time_s: NDArray[np.float64]
+    dt_s: NDArray[np.float64]
     x_m: NDArray[np.float64]
     y_m: NDArray[np.float64]
     yaw_rad: NDArray[np.float64]
@@ -214,15 +214,14 @@ class ObservationColumns:
 
     @classmethod
     def of(cls, observations: Sequence[Observation]) -> ObservationColumns:
-        """The columns of built observations (all of one step)."""
+        """The columns of built observations."""
 
         def floats(name: str) -> NDArray[np.float64]:
             return np.array([getattr(o, name) for o in observations], dtype=np.float64)
 
-        first = observations[0] if observations else None
         return cls(
-            time_s=first.time_s if first else 0.0, dt_s=first.dt_s if first else 0.0,
-            x_m=floats("x_m"), y_m=floats("y_m"), yaw_rad=floats("yaw_rad"),
+            time_s=floats("time_s"), dt_s=floats("dt_s"), x_m=floats("x_m"),
+            y_m=floats("y_m"), yaw_rad=floats("yaw_rad"),
             speed_mps=floats("speed_mps"), lane_offset_m=floats("lane_offset_m"),
             front_offset_m=floats("front_offset_m"), length_m=floats("length_m"),
             width_m=floats("width_m"), limits=[o.limits for o in observations],

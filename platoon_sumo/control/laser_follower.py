@@ -1087,7 +1087,7 @@ def _step_batch(
         dtype=np.float64,
     ).reshape(n, 3)
     inputs = np.column_stack([
-        np.full(n, float(cols.time_s)), np.full(n, cols.dt_s), cols.x_m[r], cols.y_m[r],
+        cols.time_s[r], cols.dt_s[r], cols.x_m[r], cols.y_m[r],
         cols.yaw_rad[r], cols.speed_mps[r], cols.front_offset_m[r], cols.length_m[r],
         cols.lane_offset_m[r], np.array([c._look for c in followers], dtype=np.float64),
         sensor,

@@ -91,7 +91,8 @@ class Decide:
         steers = np.array([m.actuator.steers for m in members], dtype=bool)
         scans = [m.sensors.get("laser") for m in members]
         columns = ObservationColumns(
-            time_s=time_s, dt_s=dt_s, x_m=kin_rows[:, X], y_m=kin_rows[:, Y],
+            time_s=np.full(len(members), time_s), dt_s=np.full(len(members), dt_s),
+            x_m=kin_rows[:, X], y_m=kin_rows[:, Y],
             yaw_rad=kin_rows[:, YAW], speed_mps=kin_rows[:, SPEED],
             lane_offset_m=np.where(steers, 0.0, kin_rows[:, LATERAL]),
             front_offset_m=_column(constants, "front_offset_m"),
