@@ -14,7 +14,8 @@ from dataclasses import dataclass
 from platoon_sumo.config_loader import bounded, require_positive
 from platoon_sumo.control.base import Command, Observation
 from platoon_sumo.control.rules import safe_following_speed, signal_speed_limit
-from platoon_sumo.world import SignalAhead
+from platoon_sumo.vehicles import MotionLimits
+from platoon_sumo.world import LaneChangeAhead, LinkAhead, SignalAhead, VehicleAhead
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,30 @@ SUMO_SAFETY = "sumo"
 def supervise(
     config: SupervisorConfig, obs: Observation, command: Command, sumo_drives: bool = False
 ) -> tuple[Command, str]:
-    """The command to execute and what (if anything) the supervisor enforced.
+    """The command to execute and what (if anything) the supervisor enforced
+    (`supervise_fields` of the observation's fields)."""
+    return supervise_fields(
+        config, command, obs.speed_mps, obs.dt_s, obs.limits, obs.signal, obs.link_ahead,
+        obs.lane_change, obs.vehicle_ahead, obs.obstacle_ahead, sumo_drives,
+    )  # fmt: skip
+
+
+def supervise_fields(
+    config: SupervisorConfig,
+    command: Command,
+    speed_mps: float,
+    dt_s: float,
+    limits: MotionLimits,
+    signal: SignalAhead | None,
+    link: LinkAhead | None,
+    change: LaneChangeAhead | None,
+    vehicle_ahead: VehicleAhead | None,
+    obstacle_ahead: VehicleAhead | None,
+    sumo_drives: bool = False,
+) -> tuple[Command, str]:
+    """The command to execute and what (if anything) the supervisor enforced, from the
+    fields of the vehicle's `Observation` it reads (the loop passes them without
+    building one).
 
     `sumo_drives` (lane actuation): SUMO's own junction model gives way underneath, with
     this vehicle's real approach (arrival time and speed), so the supervisor does not
@@ -68,35 +92,28 @@ def supervise(
     target lane."""
     stops: list[tuple[SignalAhead | None, str]] = []
     if config.signals:
-        stops.append((obs.signal, SIGNAL))
-    link = obs.link_ahead
+        stops.append((signal, SIGNAL))
     if config.yield_at_junctions and not sumo_drives and link is not None and link.must_yield:
         # held like a red light at the end of the lane until SUMO opens the link
         stops.append((SignalAhead("junction", -1, "r", link.distance_m), YIELD))
-    change = obs.lane_change
     if config.wait_for_lane_change_gap and change is not None and not change.clear:
         stops.append((SignalAhead("lane change", -1, "r", change.distance_m), MERGE))
     speed, state = command.speed_mps, ""
     for stop, reason in stops:
         limit = signal_speed_limit(
-            stop, obs.speed_mps, obs.dt_s, config.comfort_decel_mps2,
-            config.yellow_max_decel_mps2, config.stop_margin_m,
+            stop, speed_mps, dt_s, config.comfort_decel_mps2, config.yellow_max_decel_mps2,
+            config.stop_margin_m,
         )  # fmt: skip
         if speed > limit:
             speed, state = limit, reason
-    leaders = [
-        obs.vehicle_ahead,
-        obs.obstacle_ahead,
-        change.target_leader if change is not None else None,
-    ]
+    leaders = [vehicle_ahead, obstacle_ahead, change.target_leader if change is not None else None]
     for ahead in leaders if config.emergency_braking else ():
         if ahead is None:
             continue
         # Reaction time of one step: the brake acts on the next command.
         limit = safe_following_speed(
-            ahead.gap_m, ahead.speed_mps, config.emergency_gap_m, obs.limits.max_decel_mps2,
-            obs.dt_s,
-        )  # fmt: skip
+            ahead.gap_m, ahead.speed_mps, config.emergency_gap_m, limits.max_decel_mps2, dt_s
+        )
         if speed > limit:
             speed, state = limit, EMERGENCY
     if not state:

@@ -13,7 +13,18 @@ from platoon_sumo.control.base import (
     Controller,
     GapPolicy,
     Observation,
+    ObservationColumns,
+    ObservationRows,
     Telemetry,
 )
 
-__all__ = ["CONTROLLERS", "Command", "Controller", "GapPolicy", "Observation", "Telemetry"]
+__all__ = [
+    "CONTROLLERS",
+    "Command",
+    "Controller",
+    "GapPolicy",
+    "Observation",
+    "ObservationColumns",
+    "ObservationRows",
+    "Telemetry",
+]

@@ -8,9 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, overload, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from platoon_sumo.errors import PluginError
 from platoon_sumo.path import RoutePath
@@ -189,6 +192,94 @@ def check_controller(cls: object) -> str | None:
 CONTROLLERS: Registry[type[Controller]] = Registry("controller", check_controller)
 
 
+@dataclass(frozen=True)
+class ObservationColumns:
+    """The fields of many vehicles' observations at one step that a controller class
+    reading columns needs, under `Observation`'s names: one array entry (or list item)
+    per vehicle."""
+
+    time_s: NDArray[np.float64]
+    dt_s: NDArray[np.float64]
+    x_m: NDArray[np.float64]
+    y_m: NDArray[np.float64]
+    yaw_rad: NDArray[np.float64]
+    speed_mps: NDArray[np.float64]
+    lane_offset_m: NDArray[np.float64]
+    front_offset_m: NDArray[np.float64]
+    length_m: NDArray[np.float64]
+    width_m: NDArray[np.float64]
+    limits: Sequence[MotionLimits]
+    path: Sequence[RoutePath]
+    scan: Sequence[LaserScan | None]
+
+    @classmethod
+    def of(cls, observations: Sequence[Observation]) -> ObservationColumns:
+        """The columns of built observations."""
+
+        def floats(name: str) -> NDArray[np.float64]:
+            return np.array([getattr(o, name) for o in observations], dtype=np.float64)
+
+        return cls(
+            time_s=floats("time_s"), dt_s=floats("dt_s"), x_m=floats("x_m"),
+            y_m=floats("y_m"), yaw_rad=floats("yaw_rad"),
+            speed_mps=floats("speed_mps"), lane_offset_m=floats("lane_offset_m"),
+            front_offset_m=floats("front_offset_m"), length_m=floats("length_m"),
+            width_m=floats("width_m"), limits=[o.limits for o in observations],
+            path=[o.path for o in observations], scan=[o.scan for o in observations],
+        )  # fmt: skip
+
+
+class ObservationRows(Sequence[Observation]):
+    """Observations handed as columns (`columns`; this sequence's k-th is row
+    `rows[k]`), each `Observation` built only when first asked for: a controller class
+    with a ``step_many`` that reads `columns` spares the vehicles it steps from them
+    the objects."""
+
+    def __init__(
+        self,
+        columns: ObservationColumns,
+        build: Callable[[int], Observation],
+        rows: Sequence[int] | None = None,
+        built: dict[int, Observation] | None = None,
+    ):
+        self.columns = columns
+        self.rows: Sequence[int] = range(len(columns.x_m)) if rows is None else rows
+        self._build = build
+        self._built: dict[int, Observation] = {} if built is None else built
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    @overload
+    def __getitem__(self, k: int) -> Observation: ...
+
+    @overload
+    def __getitem__(self, k: slice) -> list[Observation]: ...
+
+    def __getitem__(self, k: int | slice) -> Observation | list[Observation]:
+        if isinstance(k, slice):
+            return [self[j] for j in range(len(self))[k]]
+        row = self.rows[k]
+        found = self._built.get(row)
+        if found is None:
+            found = self._built[row] = self._build(row)
+        return found
+
+    def subset(self, indices: Sequence[int]) -> ObservationRows:
+        """The observations at `indices` (sharing those built)."""
+        rows = self.rows
+        return ObservationRows(self.columns, self._build, [rows[k] for k in indices], self._built)
+
+
+class MemberFailure(Exception):
+    """Raised by a ``step_many`` for the vehicle whose step failed: the `index` of its
+    observation in the group and the exception (`step_batch` then names that vehicle)."""
+
+    def __init__(self, index: int, cause: Exception):
+        super().__init__(index, cause)
+        self.index, self.cause = index, cause
+
+
 def step_batch(
     controllers: Sequence[Controller], observations: Sequence[Observation]
 ) -> list[Command]:
@@ -205,20 +296,27 @@ def step_batch(
     for cls, indices in groups.items():
         many = getattr(cls, "step_many", None)
         if many is not None:
-            group = [observations[k] for k in indices]
+            group: Sequence[Observation] = (
+                observations.subset(indices)
+                if isinstance(observations, ObservationRows)
+                else [observations[k] for k in indices]
+            )
             try:
                 out = many([controllers[k] for k in indices], group)
+            except MemberFailure as failed:
+                one = [group[failed.index]]
+                raise _failure(cls, one, failed.cause) from failed.cause
             except Exception as exc:
                 raise _failure(cls, group, exc) from exc
             for k, command in zip(indices, out, strict=True):
-                commands[k] = _checked(cls, observations[k], command)
+                commands[k] = _checked(cls, observations, k, command)
         else:
             for k in indices:
                 try:
                     command = controllers[k].step(observations[k])
                 except Exception as exc:
                     raise _failure(cls, [observations[k]], exc) from exc
-                commands[k] = _checked(cls, observations[k], command)
+                commands[k] = _checked(cls, observations, k, command)
     return [c for c in commands if c is not None]
 
 
@@ -233,17 +331,19 @@ def _failure(cls: type, group: Sequence[Observation], exc: Exception) -> PluginE
     )
 
 
-def _checked(cls: type, obs: Observation, command: object) -> Command:
+def _checked(cls: type, observations: Sequence[Observation], k: int, command: object) -> Command:
     """`command` if it is a Command a vehicle can execute; a PluginError naming the
-    controller, the vehicle, the time and what is wrong otherwise (never let SUMO drive
-    the car on instead)."""
+    controller, the vehicle (of ``observations[k]``), the time and what is wrong
+    otherwise (never let SUMO drive the car on instead)."""
     if not isinstance(command, Command):
+        obs = observations[k]
         raise PluginError(
             f"{_who(cls, obs)} returned {type(command).__name__} at t={obs.time_s:.2f} s, "
             "not a Command"
         )
     problem = command_problem(command)
     if problem:
+        obs = observations[k]
         raise PluginError(
             f"{_who(cls, obs)} returned an invalid command at t={obs.time_s:.2f} s: {problem}"
         )

@@ -72,14 +72,25 @@ Defaults are for cars (4.5 x 1.8 m, utm30lx, up to 14 m/s, dt 0.1 s). Robot scal
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from platoon_sumo.config_loader import bounded, require, require_choice, require_positive
-from platoon_sumo.control.base import CONTROLLERS, Command, GapPolicy, Observation, Telemetry
+from platoon_sumo.control.base import (
+    CONTROLLERS,
+    Command,
+    GapPolicy,
+    MemberFailure,
+    Observation,
+    ObservationColumns,
+    ObservationRows,
+    Telemetry,
+)
+from platoon_sumo.control.follower_rows import FollowerRows, PathTables
 from platoon_sumo.control.perception import (
     PerceptionParams,
     RearCandidate,
@@ -92,6 +103,8 @@ from platoon_sumo.control.perception import (
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
 from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.kernels.follower import (
+    CONST_NAMES,
+    LAW_NAMES,
     arc_clearance_kernel,
     follow_kernel,
     krauss_safe_speed,
@@ -100,8 +113,18 @@ from platoon_sumo.kernels.follower import (
     start_gate_kernel,
     trail_kernel,
 )
-from platoon_sumo.kernels.following import LANE_UNREAD, LOST, RAISE, following_step_kernel
-from platoon_sumo.kernels.perception import CANDIDATE_COLUMNS
+from platoon_sumo.kernels.following import (
+    FOLLOWED,
+    LANE_UNREAD,
+    LOST,
+    PARAM_NAMES,
+    RAISE,
+    SKIPPED,
+    STATE_NAMES,
+    following_batch_kernel,
+    following_step_kernel,
+)
+from platoon_sumo.kernels.perception import CANDIDATE_COLUMNS, STATE_SIZE
 from platoon_sumo.path import FloatArray, RoutePath
 from platoon_sumo.sensors.laser import LaserScan
 from platoon_sumo.vehicles import MotionLimits
@@ -313,11 +336,21 @@ class LaserFollower:
         self._trail_buf: FloatArray = np.zeros((min(64, 2 * self.params.max_trail_points + 2), 2))
         self._arrays_of: RoutePath | None = None
         self._path_arrays: tuple[np.ndarray, ...] = ()
+        self._rows: FollowerRows | None = None
+        """The pool of ``step_many`` whose rows hold this follower's arrays, and its row."""
+        self._slot = -1
+        self._pooled_buffers: _ScanBuffers | None = None
+        self._pooled_law: FloatArray | None = None
+        self._joined = False
+        """Whether the pooled state row holds this follower's numbers (``_join_rows``)."""
+        self._batched: list[float] | None = None
+        """This step's values of ``following_batch_kernel`` (``step_many``)."""
         self.reset()
 
     # ------------------------------------------------------------------ public API
 
     def reset(self) -> None:
+        self._joined = False
         self.tracker.reset()
         self._fallback.reset()
         self._trail_lo = self._trail_hi = 0
@@ -362,6 +395,8 @@ class LaserFollower:
     @property
     def track(self) -> TrackedPredecessor | None:
         """The confirmed predecessor track at the last step, or None."""
+        if self._joined:
+            self._leave_rows()
         if self._track is None and self._track_args is not None:
             self._track = TrackedPredecessor(*self._track_args)
         return self._track
@@ -369,15 +404,112 @@ class LaserFollower:
     @property
     def trail(self) -> FloatArray:
         """The stored trail of the predecessor's rear positions (world frame), (n, 2)."""
+        if self._joined:
+            self._leave_rows()
         return self._trail_buf[self._trail_lo : self._trail_hi].copy()
 
     # ------------------------------------------------------------------ step
 
     def step(self, observation: Observation) -> Command:
-        obs, p = observation, self.params
+        if self._joined:
+            self._leave_rows()
+        self._begin(observation.speed_mps)
+        return self._finish(observation, *self._fused_step(observation))
+
+    @staticmethod
+    def step_many(
+        controllers: Sequence[LaserFollower], observations: Sequence[Observation]
+    ) -> list[Command]:
+        """``step`` for many followers: the fused steps of all that have one (see
+        ``_fused_step``) in one kernel call (``kernels.following.following_batch_kernel``)
+        on pooled rows of their arrays (``control.follower_rows``), then each follower's
+        step as ``step`` goes on from there, in order. Handed `ObservationRows` (the
+        loop's columns), a follower whose batched step keeps following never has its
+        `Observation` built. A subclass that overrides ``step`` is stepped with it."""
+        if isinstance(observations, ObservationRows):
+            cols, at = observations.columns, observations.rows
+        else:
+            cols, at = ObservationColumns.of(observations), range(len(observations))
+        batches: dict[FollowerRows, list[int]] = {}
+        speed, path, scan, limits, width = (
+            cols.speed_mps,
+            cols.path,
+            cols.scan,
+            cols.limits,
+            cols.width_m,
+        )
+        for k, c in enumerate(controllers):
+            if type(c).step is not LaserFollower.step:
+                continue
+            r = at[k]
+            rows = c._batch_entry(speed[r], path[r], scan[r], limits[r], width[r])
+            if rows is not None:
+                batches.setdefault(rows, []).append(k)
+        for rows, members in batches.items():
+            _step_batch(rows, [controllers[k] for k in members], cols, [at[k] for k in members])
+        commands = []
+        for k, c in enumerate(controllers):
+            try:
+                if type(c).step is not LaserFollower.step:
+                    commands.append(c.step(observations[k]))
+                    continue
+                out, c._batched = c._batched, None
+                if out is not None and out[0] == FOLLOWED:  # booked in the rows
+                    c._last_scan = c._clearance_scan = scan[at[k]]
+                    c._in_view, c._blocked, c._measured_gap_m = bool(out[16]), bool(out[5]), out[24]
+                    c._track = None
+                    c.mode = "following"
+                    commands.append(c._command(out[22], out[23], None, int(out[31]), bool(out[32])))
+                    continue
+                obs = observations[k]
+                if out is None:  # not in a batch
+                    done = c._fused_step(obs)
+                else:  # booked as after a single call, from the rows as they were
+                    c._leave_rows()
+                    if out[0] == SKIPPED:
+                        done = c._fused_step(obs)
+                    else:
+                        assert c._pooled_buffers is not None  # _pooled_rows
+                        done = c._fused_apply(obs, c._pooled_buffers, out)
+                commands.append(c._finish(obs, *done))
+            except Exception as exc:
+                raise MemberFailure(k, exc) from exc
+        return commands
+
+    def _batch_entry(
+        self,
+        speed_mps: float,
+        path: RoutePath,
+        scan: LaserScan | None,
+        limits: MotionLimits,
+        width_m: float,
+    ) -> FollowerRows | None:
+        """``_begin``; then the pool whose batched kernel takes this step (the follower's
+        numbers in its rows), or None (the numbers back in the attributes)."""
+        self._begin(speed_mps)
+        joined = self._joined
+        rows = None
+        if self._fusable(scan, path, joined):
+            assert scan is not None  # _fusable
+            rows = self._pooled_rows(scan, path, limits, width_m)
+        if rows is None:
+            if joined:
+                self._leave_rows()
+        elif not joined:
+            self._join_rows()
+        return rows
+
+    def _begin(self, speed_mps: float) -> None:
+        p = self.params
         self._ahead_memo = self._corridor_memo = None  # reused within one step only
-        self._look = max(p.lookahead_min_m, p.lookahead_time_s * obs.speed_mps)
-        perceived, followed = self._fused_step(obs)
+        self._look = max(p.lookahead_min_m, p.lookahead_time_s * speed_mps)
+
+    def _finish(
+        self, obs: Observation, perceived: bool, followed: tuple[float, float, int, bool] | None
+    ) -> Command:
+        """The step after the fused kernel (or without it): the perception where the
+        kernel did not run, then following, the lost modes and the command."""
+        p = self.params
         if not perceived:
             if p.corridor_half_width_m is not None:
                 self._locate_on_route(obs)
@@ -406,6 +538,13 @@ class LaserFollower:
             else:
                 self.mode = "stopping"
                 speed, yaw_rate = self._stop(obs)
+        return self._command(speed, yaw_rate, heading, lane_change, keep_lane)
+
+    def _command(
+        self, speed: float, yaw_rate: float, heading: float | None, lane_change: int,
+        keep_lane: bool,
+    ) -> Command:  # fmt: skip
+        """The step's command in the current mode (none but a stop while blocked)."""
         if self._blocked:
             speed, lane_change, heading, keep_lane = 0.0, 0, None, False
         if self.mode == "following":
@@ -436,50 +575,80 @@ class LaserFollower:
         active track on this route, room in the trail buffer. Returns (whether the scan
         was processed, the following command's speed, yaw rate, lane request and keep the
         lane, or None: the track is lost, or the kernel did not run)."""
-        p, scan, tracker = self.params, obs.scan, self.tracker
-        if (
-            p.corridor_half_width_m is None
-            or scan is None
-            or scan is self._last_scan
-            or not tracker.active
-            or obs.path is not self._route
-            or self._route_s is None
-            or self._trail_hi >= len(self._trail_buf)
-        ):
+        if not self._fusable(obs.scan, obs.path):
             return False, None
+        p, scan, tracker = self.params, obs.scan, self.tracker
+        assert scan is not None  # _fusable
         b = self._buffers(scan, p.predecessor_width_m or obs.width_m)
         if obs.path is not self._arrays_of:
             self._arrays_of, self._path_arrays = obs.path, obs.path.follower_kernel_arrays
-        since = self._outside_since
         xy, blocks, widths, codes, spans, shift, geometry = self._path_arrays
-        (
-            status, route_s, mount_x, mount_y, mount_yaw, blocked, k, b.cand_n, tx, ty, tvx,
-            tvy, var_p, var_v, dropped, has_since, in_view, lo, hi, last_x, last_y,
-            fallback_s, speed, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry,
-            lane, keep, *raise_args,
-        ) = following_step_kernel(
+        out = following_step_kernel(
             xy, blocks, widths, codes, spans, shift, geometry, scan.ranges, b.cos_a, b.sin_a,
             b.consts, self._perception_array, tracker.state_array, b.pts, b.rows, b.cand_pts,
             b.cand_row, self._trail_buf, self._law(obs.limits), self._fused_params,
+            *self._fused_scalars(obs, scan),
+        )  # fmt: skip
+        return self._fused_apply(obs, b, out)
+
+    def _fusable(self, scan: LaserScan | None, path: RoutePath, joined: bool = False) -> bool:
+        """Whether the fused kernel applies this step: a corridor, a new scan, an active
+        track on this route, room in the trail buffer (`joined`: the pooled rows hold the
+        track and the trail, and the batched kernel checks the room)."""
+        return not (
+            self.params.corridor_half_width_m is None
+            or scan is None
+            or scan is self._last_scan
+            or path is not self._route
+            or (
+                not joined
+                and (
+                    not self.tracker.active
+                    or self._route_s is None
+                    or self._trail_hi >= len(self._trail_buf)
+                )
+            )
+        )
+
+    def _fused_scalars(self, obs: Observation, scan: LaserScan) -> list[Any]:
+        """``following_step_kernel``'s arguments after its arrays (time .. since)."""
+        tracker, since = self.tracker, self._outside_since
+        return [
             float(obs.time_s), obs.dt_s, obs.x_m, obs.y_m, obs.yaw_rad, obs.speed_mps,
-            obs.front_offset_m, obs.length_m, obs.lane_offset_m, self._look, self._route_s,
+            obs.front_offset_m, obs.length_m, obs.lane_offset_m, self._look,
+            self._route_s,
             self._fallback._s_m, float(scan.origin_x_m), float(scan.origin_y_m),
             float(scan.heading_rad), tracker.hits, tracker.missed, tracker.last_hit_s,
             self._trail_lo, self._trail_hi, *self._trail_last, since is not None,
             0.0 if since is None else since,
-        )  # fmt: skip
+        ]  # fmt: skip
+
+    def _fused_apply(
+        self, obs: Observation, b: _ScanBuffers, out: Sequence[float]
+    ) -> tuple[bool, tuple[float, float, int, bool] | None]:
+        """Keep what ``following_step_kernel`` returned (``out``: its values in order,
+        as it gives them or as numbers from ``following_batch_kernel``)."""
+        (
+            status, route_s, mount_x, mount_y, mount_yaw, blocked, k, cand_n, tx, ty, tvx,
+            tvy, var_p, var_v, dropped, has_since, in_view, lo, hi, last_x, last_y,
+            fallback_s, speed, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry,
+            lane, keep, *raise_args,
+        ) = out  # fmt: skip
+        status = int(status)
         if status == RAISE:
             obs.path.project_lane(*raise_args)  # raises (a hint or window not finite)
+        tracker, since = self.tracker, self._outside_since
+        b.cand_n = int(cand_n)
         self._route_s = route_s
-        self._last_scan = self._clearance_scan = scan
+        self._last_scan = self._clearance_scan = obs.scan
         self._mount = (mount_x, mount_y, mount_yaw)
-        tracker.record_step(obs.time_s, k, (tx, ty, tvx, tvy), var_p, var_v, b.last_candidate)
+        tracker.record_step(obs.time_s, int(k), (tx, ty, tvx, tvy), var_p, var_v, b.last_candidate)
         if dropped:
             tracker.reset()
         self._outside_since = (since if since is not None else obs.time_s) if has_since else None
-        self._in_view = in_view
-        self._blocked = blocked
-        self._trail_lo, self._trail_hi, self._trail_last = lo, hi, (last_x, last_y)
+        self._in_view = in_view = bool(in_view)
+        self._blocked = bool(blocked)
+        self._trail_lo, self._trail_hi, self._trail_last = int(lo), int(hi), (last_x, last_y)
         if status == LOST:
             return True, None
         self._fallback._s_m = fallback_s
@@ -487,8 +656,96 @@ class LaserFollower:
         self._track = None
         self._track_args = (range_m, bearing, range_rate, in_view, lead_speed, rx, ry)
         if status == LANE_UNREAD:
-            lane, keep = self._lane_request(obs, rx, ry)
-        return True, (speed, yaw_rate, lane, keep)
+            return True, (speed, yaw_rate, *self._lane_request(obs, rx, ry))
+        return True, (speed, yaw_rate, int(lane), bool(keep))
+
+    # ------------------------------------------------------------------ pooled rows
+
+    def _pooled_rows(
+        self, scan: LaserScan, path: RoutePath, limits: MotionLimits, width_m: float
+    ) -> FollowerRows | None:
+        """The pool this follower's fused step can run in, its arrays on their rows there
+        (joining it first), or None (a scan of another size than the pool's)."""
+        b = self._buffers(scan, self.params.predecessor_width_m or width_m)
+        rows = self._rows
+        if rows is None:
+            rows = _pool(scan.ranges.size, self.params)
+            rows.join(self)
+        a, slot = rows.arrays, self._slot
+        if b is not self._pooled_buffers:
+            if b.cos_a.shape != a["cos_a"].shape[1:]:
+                return None
+            for name in _BUFFER_ROWS:
+                a[name][slot] = getattr(b, name)
+                setattr(b, name, a[name][slot])
+            self._pooled_buffers = b
+        law = self._law_array if limits is self._law_limits else self._law(limits)
+        if law is not self._pooled_law:
+            a["law"][slot] = law
+            self._law_array = self._pooled_law = a["law"][slot]
+        if path is not self._arrays_of:
+            self._arrays_of, self._path_arrays = path, path.follower_kernel_arrays
+        return rows
+
+    def _join_rows(self) -> None:
+        """Hand the numbers kept between steps to the pooled state row (``STATE_NAMES``):
+        the batched kernel books its following steps there, and the attributes below are
+        stale until ``_leave_rows``."""
+        assert self._rows is not None and self._pooled_buffers is not None
+        t, since, track = self.tracker, self._outside_since, self._track_args
+        self._rows.arrays["state_rows"][self._slot] = [
+            self._route_s, self._fallback._s_m, t.hits, t.missed, t.last_hit_s,
+            self._trail_lo, self._trail_hi, *self._trail_last, since is not None,
+            0.0 if since is None else since, 0.0, t.time_s, *t._x, t._position_variance,
+            t._velocity_variance, *self._mount, self._pooled_buffers.cand_n,
+            track is not None, *(track if track is not None else (0.0,) * 7),
+        ]  # fmt: skip
+        self._joined = True
+
+    def _leave_rows(self) -> None:
+        """The numbers the pooled state row holds back into the attributes."""
+        assert self._rows is not None and self._pooled_buffers is not None
+        (
+            route_s, fallback_s, hits, missed, last_hit_s, lo, hi, last_x, last_y, has_since,
+            since, hit, track_time, tx, ty, tvx, tvy, var_p, var_v, mount_x, mount_y,
+            mount_yaw, cand_n, has_track, *track,
+        ) = self._rows.arrays["state_rows"][self._slot].tolist()  # fmt: skip
+        t, b = self.tracker, self._pooled_buffers
+        self._route_s, self._fallback._s_m = route_s, fallback_s
+        t.hits, t.missed, t.last_hit_s = int(hits), int(missed), last_hit_s
+        t.time_s, t._x = track_time, (tx, ty, tvx, tvy)
+        t._position_variance, t._velocity_variance = var_p, var_v
+        if hit:
+            t._last = b.last_candidate
+        self._trail_lo, self._trail_hi, self._trail_last = int(lo), int(hi), (last_x, last_y)
+        self._outside_since = since if has_since else None
+        self._mount = (mount_x, mount_y, mount_yaw)
+        b.cand_n = int(cand_n)
+        if has_track:
+            range_m, bearing, rate, in_view, speed, rx, ry = track
+            self._track_args = (range_m, bearing, rate, bool(in_view), speed, rx, ry)
+        self._joined = False
+
+    def bind(self, pool: FollowerRows, slot: int) -> None:
+        """Work on rows `slot` of the pool's arrays from now on (``FollowerRows.join``,
+        and again after it grows): the values are copied there first."""
+        a = pool.arrays
+        self._rows, self._slot = pool, slot
+        self.tracker.keep_state_in(a["state"][slot])
+        a["trail"][slot, : len(self._trail_buf)] = self._trail_buf
+        self._trail_buf = a["trail"][slot]
+        a["perception"][slot] = self._perception_array
+        self._perception_array = a["perception"][slot]
+        a["params"][slot] = self._fused_params
+        self.__dict__["_fused_params"] = a["params"][slot]
+        b = self._pooled_buffers
+        if b is not None:
+            for name in _BUFFER_ROWS:
+                a[name][slot] = getattr(b, name)
+                setattr(b, name, a[name][slot])
+        if self._pooled_law is not None:
+            a["law"][slot] = self._pooled_law
+            self._law_array = self._pooled_law = a["law"][slot]
 
     @cached_property
     def _fused_params(self) -> FloatArray:
@@ -646,6 +903,7 @@ class LaserFollower:
                 size = len(buf)
                 if hi - lo > size // 2:
                     size = min(2 * size, 2 * self.params.max_trail_points + 2)
+                if size > len(buf):
                     buf = self._trail_buf = np.concatenate([buf, np.zeros((size - len(buf), 2))])
                 buf[: hi - lo] = buf[lo:hi]
                 lo, hi = 0, hi - lo
@@ -778,3 +1036,72 @@ class LaserFollower:
                 float(curvature),
             )
         )
+
+
+_BUFFER_ROWS = ("cos_a", "sin_a", "consts", "cand_pts", "cand_row")
+"""The arrays of a follower's ``_ScanBuffers`` kept on its pooled rows."""
+
+_PATH_TABLES = ("xy", "blocks", "widths", "codes", "spans", "shift", "geometry")
+
+_POOLS: dict[tuple[int, int, int], FollowerRows] = {}
+_PATHS: dict[FollowerRows, PathTables] = {}
+
+
+def _pool(rays: int, params: LaserFollowerParams) -> FollowerRows:
+    """The pool of the followers with scans of `rays` rays and `params`' trail size."""
+    trail_rows = 2 * params.max_trail_points + 2
+    perception = len(params_array(params.perception))
+    key = (rays, trail_rows, perception)
+    found = _POOLS.get(key)
+    if found is None:
+        found = _POOLS[key] = FollowerRows({
+            "state": (STATE_SIZE,), "trail": (trail_rows, 2), "perception": (perception,),
+            "params": (len(PARAM_NAMES),), "law": (len(LAW_NAMES),), "cos_a": (rays,),
+            "sin_a": (rays,), "consts": (len(CONST_NAMES),), "cand_pts": (rays, 2),
+            "cand_row": (len(CANDIDATE_COLUMNS),), "state_rows": (len(STATE_NAMES),),
+        })  # fmt: skip
+        _PATHS[found] = PathTables(_PATH_TABLES)
+    return found
+
+
+def _path_rows(path: object) -> tuple[np.ndarray, ...]:
+    assert isinstance(path, RoutePath)
+    xy, blocks, widths, codes, spans, shift, geometry = path.follower_kernel_arrays
+    return xy, blocks, widths, codes, spans, shift, geometry[None, :]
+
+
+def _step_batch(
+    rows: FollowerRows, followers: list[LaserFollower], cols: ObservationColumns, at: list[int]
+) -> None:
+    """The fused steps of `followers` (all joined to `rows`; their observations rows `at`
+    of `cols`) in one kernel call; each keeps its row of values for ``step_many``
+    (``_batched``)."""
+    paths = _PATHS[rows]
+    path_of = paths.numbers([cols.path[r] for r in at], _path_rows)
+    scans = [cols.scan[r] for r in at]
+    ranges = np.stack([scan.ranges for scan in scans if scan is not None])
+    r = np.array(at, dtype=np.int64)
+    n = len(at)
+    sensor = np.array(
+        [(s.origin_x_m, s.origin_y_m, s.heading_rad) for s in scans if s is not None],
+        dtype=np.float64,
+    ).reshape(n, 3)
+    inputs = np.column_stack([
+        cols.time_s[r], cols.dt_s[r], cols.x_m[r], cols.y_m[r],
+        cols.yaw_rad[r], cols.speed_mps[r], cols.front_offset_m[r], cols.length_m[r],
+        cols.lane_offset_m[r], np.array([c._look for c in followers], dtype=np.float64),
+        sensor,
+    ])  # fmt: skip
+    a = rows.arrays
+    scratch_pts, scratch_rows = _scratch(rows.shapes["cos_a"][0])
+    table, starts = paths.table, paths.starts
+    out = following_batch_kernel(
+        table("xy"), starts("xy"), table("blocks"), starts("blocks"), table("widths"),
+        starts("widths"), table("codes"), starts("codes"), table("spans"), starts("spans"),
+        table("shift"), starts("shift"), table("geometry"), np.array(path_of, dtype=np.int64),
+        ranges, a["cos_a"], a["sin_a"], a["consts"], a["perception"], a["state"], scratch_pts,
+        scratch_rows, a["cand_pts"], a["cand_row"], a["trail"], a["law"], a["params"],
+        a["state_rows"], np.array([c._slot for c in followers], dtype=np.int64), inputs,
+    )  # fmt: skip
+    for c, values in zip(followers, out.tolist(), strict=True):
+        c._batched = values

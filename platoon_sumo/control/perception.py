@@ -551,6 +551,12 @@ class RearTracker:
         )  # fmt: skip
         return self.record_step(time_s, k, (x, y, vx, vy), var_p, var_v)
 
+    def keep_state_in(self, array: FloatArray) -> None:
+        """Keep the filter's state in `array` (15 numbers, e.g. a row of a pool of many
+        trackers' states) from now on; the current state is copied there."""
+        array[:] = self._state
+        self._state = array
+
     @property
     def state_array(self) -> FloatArray:
         """The filter's state as ``kalman_step`` takes it (updated in place: a kernel that

@@ -292,3 +292,191 @@ def following_step_kernel(
             var_p, var_v, dropped, has_since, hit, lo, hi, last_x, last_y, fallback_s,
             cmd, yaw_rate, gap, range_rate, lead_speed, range_m, bearing, rx, ry, lane, keep,
             nan, nan, nan, nan)  # fmt: skip
+
+
+OUTPUT_SIZE = 37
+"""The number of values ``following_step_kernel`` returns (a row of
+``following_batch_kernel``'s output)."""
+
+SKIPPED = 4
+"""``following_batch_kernel``: the step did not run (no room left in the trail); the
+caller steps the follower itself."""
+
+STATE_NAMES = (
+    "route_s", "fallback_s", "hits", "missed", "last_hit_s", "trail_lo", "trail_hi",
+    "trail_last_x", "trail_last_y", "has_since", "since", "hit_since_joined", "track_time_s",
+    "track_x", "track_y", "track_vx", "track_vy", "track_var_p", "track_var_v", "mount_x",
+    "mount_y", "mount_yaw", "cand_n", "has_track", "track_range_m", "track_bearing_rad",
+    "track_range_rate_mps", "track_in_view", "track_speed_mps", "track_rear_x",
+    "track_rear_y",
+)  # fmt: skip
+"""A follower's numbers between steps in ``following_batch_kernel``'s ``state_rows``
+(the controller's attributes of those names while it is stepped there)."""
+(
+    S_ROUTE, S_FALLBACK, S_HITS, S_MISSED, S_LAST_HIT, S_LO, S_HI, S_LAST_X, S_LAST_Y,
+    S_HAS_SINCE, S_SINCE, S_HIT_SINCE_JOINED, S_TRACK_TIME, S_TX, S_TY, S_TVX, S_TVY,
+    S_VAR_P, S_VAR_V, S_MOUNT_X, S_MOUNT_Y, S_MOUNT_YAW, S_CAND_N, S_HAS_TRACK, S_RANGE,
+    S_BEARING, S_RANGE_RATE, S_IN_VIEW, S_LEAD_SPEED, S_RX, S_RY,
+) = range(len(STATE_NAMES))  # fmt: skip
+INPUT_NAMES = (
+    "time_s", "dt_s", "x_m", "y_m", "yaw_rad", "speed_mps", "front_offset_m", "length_m",
+    "lane_offset_m", "look_m", "scan_x_m", "scan_y_m", "scan_heading_rad",
+)  # fmt: skip
+"""A follower's inputs of one step in ``following_batch_kernel``'s ``inputs``."""
+
+
+@njit(cache=True)
+def following_batch_kernel(
+    xy: np.ndarray,
+    xy_starts: np.ndarray,
+    blocks: np.ndarray,
+    block_starts: np.ndarray,
+    widths: np.ndarray,
+    width_starts: np.ndarray,
+    codes: np.ndarray,
+    code_starts: np.ndarray,
+    spans: np.ndarray,
+    span_starts: np.ndarray,
+    shift: np.ndarray,
+    shift_starts: np.ndarray,
+    geometry: np.ndarray,
+    path_of: np.ndarray,
+    ranges: np.ndarray,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    consts: np.ndarray,
+    perception: np.ndarray,
+    state: np.ndarray,
+    pts: np.ndarray,
+    rows: np.ndarray,
+    cand_pts: np.ndarray,
+    cand_row: np.ndarray,
+    trail: np.ndarray,
+    law: np.ndarray,
+    params: np.ndarray,
+    state_rows: np.ndarray,
+    slot_of: np.ndarray,
+    inputs: np.ndarray,
+) -> np.ndarray:
+    """``following_step_kernel`` for many followers in one call. Follower j is on path
+    ``p = path_of[j]``: its points are rows ``xy_starts[p]:xy_starts[p + 1]`` of ``xy``,
+    its blocks, lane widths, lane codes, lane-change spans and lane shifts the rows of
+    ``blocks``, ``widths``, ``codes``, ``spans`` and ``shift`` between their starts, its
+    geometry row p of ``geometry``. It scans ``ranges[j]``, reads ``inputs[j]``
+    (``INPUT_NAMES``) and keeps what it keeps between steps in row ``slot_of[j]`` of
+    the pooled arrays (rays' cosines and sines, constants, perception parameters, track
+    filter, candidate, trail, spacing law and parameters) and of ``state_rows``
+    (``STATE_NAMES``); ``pts`` and ``rows`` are the shared scratch buffers.
+
+    Row j of the result holds the values of its ``following_step_kernel`` call, in
+    order, as numbers (status ``SKIPPED`` without a call: its trail is full). Only a
+    ``FOLLOWED`` step is booked in ``state_rows`` (as ``LaserFollower`` books it); for
+    any other status the row is left as it was, the arrays as the kernel left them, and
+    the caller books the values as after a single call."""
+    n = path_of.shape[0]
+    out = np.empty((n, OUTPUT_SIZE))
+    for j in range(n):
+        p = path_of[j]
+        q = slot_of[j]
+        v = inputs[j]
+        s = state_rows[q]
+        lo = int(s[S_LO])
+        hi = int(s[S_HI])
+        if hi >= trail.shape[1]:
+            out[j, :] = math.nan
+            out[j, 0] = SKIPPED
+            continue
+        time_s = v[0]
+        res = following_step_kernel(
+            xy[xy_starts[p] : xy_starts[p + 1]], blocks[block_starts[p] : block_starts[p + 1]],
+            widths[width_starts[p] : width_starts[p + 1]],
+            codes[code_starts[p] : code_starts[p + 1]], spans[span_starts[p] : span_starts[p + 1]],
+            shift[shift_starts[p] : shift_starts[p + 1]], geometry[p], ranges[j], cos_a[q],
+            sin_a[q], consts[q], perception[q], state[q], pts, rows, cand_pts[q], cand_row[q],
+            trail[q], law[q], params[q], time_s, v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8],
+            v[9], s[S_ROUTE], s[S_FALLBACK], v[10], v[11], v[12], int(s[S_HITS]),
+            int(s[S_MISSED]), s[S_LAST_HIT], lo, hi, s[S_LAST_X], s[S_LAST_Y],
+            s[S_HAS_SINCE] != 0.0, s[S_SINCE],
+        )  # fmt: skip
+        row = out[j]
+        row[0] = res[0]
+        row[1] = res[1]
+        row[2] = res[2]
+        row[3] = res[3]
+        row[4] = res[4]
+        row[5] = res[5]
+        row[6] = res[6]
+        row[7] = res[7]
+        row[8] = res[8]
+        row[9] = res[9]
+        row[10] = res[10]
+        row[11] = res[11]
+        row[12] = res[12]
+        row[13] = res[13]
+        row[14] = res[14]
+        row[15] = res[15]
+        row[16] = res[16]
+        row[17] = res[17]
+        row[18] = res[18]
+        row[19] = res[19]
+        row[20] = res[20]
+        row[21] = res[21]
+        row[22] = res[22]
+        row[23] = res[23]
+        row[24] = res[24]
+        row[25] = res[25]
+        row[26] = res[26]
+        row[27] = res[27]
+        row[28] = res[28]
+        row[29] = res[29]
+        row[30] = res[30]
+        row[31] = res[31]
+        row[32] = res[32]
+        row[33] = res[33]
+        row[34] = res[34]
+        row[35] = res[35]
+        row[36] = res[36]
+        if res[0] != FOLLOWED:
+            continue
+        # booked as LaserFollower._fused_apply and RearTracker.record_step book it
+        s[S_ROUTE] = res[1]
+        s[S_MOUNT_X] = res[2]
+        s[S_MOUNT_Y] = res[3]
+        s[S_MOUNT_YAW] = res[4]
+        k = res[6]
+        s[S_CAND_N] = res[7]
+        s[S_TRACK_TIME] = time_s
+        s[S_TX] = res[8]
+        s[S_TY] = res[9]
+        s[S_TVX] = res[10]
+        s[S_TVY] = res[11]
+        s[S_VAR_P] = res[12]
+        s[S_VAR_V] = res[13]
+        if k < 0:
+            s[S_MISSED] += 1.0
+        else:
+            s[S_HITS] += 1.0
+            s[S_MISSED] = 0.0
+            s[S_LAST_HIT] = time_s
+            s[S_HIT_SINCE_JOINED] = 1.0
+        if res[15]:
+            if s[S_HAS_SINCE] == 0.0:
+                s[S_SINCE] = time_s
+            s[S_HAS_SINCE] = 1.0
+        else:
+            s[S_HAS_SINCE] = 0.0
+            s[S_SINCE] = 0.0
+        s[S_LO] = res[17]
+        s[S_HI] = res[18]
+        s[S_LAST_X] = res[19]
+        s[S_LAST_Y] = res[20]
+        s[S_FALLBACK] = res[21]
+        s[S_HAS_TRACK] = 1.0
+        s[S_RANGE] = res[27]
+        s[S_BEARING] = res[28]
+        s[S_RANGE_RATE] = res[25]
+        s[S_IN_VIEW] = res[16]
+        s[S_LEAD_SPEED] = res[26]
+        s[S_RX] = res[29]
+        s[S_RY] = res[30]
+    return out

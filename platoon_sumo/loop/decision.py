@@ -3,14 +3,17 @@ supervisor, which may only lower the speed."""
 
 from __future__ import annotations
 
+import numpy as np
+from numpy.typing import NDArray
+
 from platoon_sumo.control import Command, Observation
-from platoon_sumo.control.base import step_batch
+from platoon_sumo.control.base import ObservationColumns, ObservationRows, step_batch
 from platoon_sumo.events import EventKind
 from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, SPEED, YAW, Member, X, Y
 from platoon_sumo.sensors.laser import LaserScan
-from platoon_sumo.supervisor import EMERGENCY, supervise
+from platoon_sumo.supervisor import EMERGENCY, supervise_fields
 
 
 def constant_fields(m: Member) -> dict[str, object]:
@@ -81,22 +84,44 @@ class Decide:
         members = list(ctx.fleet)
         if not members:
             return
-        time_s = ctx.world.time_s
-        kin = ctx.fleet.kin[ctx.fleet.rows(members)].tolist()
-        observations = [
-            observation(m, time_s, ctx.dt_s, k, self._constant_fields(m))
-            for m, k in zip(members, kin, strict=True)
-        ]
+        time_s, dt_s = ctx.world.time_s, ctx.dt_s
+        kin_rows = ctx.fleet.kin[ctx.fleet.rows(members)]
+        kin = kin_rows.tolist()
+        constants = [self._constant_fields(m) for m in members]
+        steers = np.array([m.actuator.steers for m in members], dtype=bool)
+        scans = [m.sensors.get("laser") for m in members]
+        columns = ObservationColumns(
+            time_s=np.full(len(members), time_s), dt_s=np.full(len(members), dt_s),
+            x_m=kin_rows[:, X], y_m=kin_rows[:, Y],
+            yaw_rad=kin_rows[:, YAW], speed_mps=kin_rows[:, SPEED],
+            lane_offset_m=np.where(steers, 0.0, kin_rows[:, LATERAL]),
+            front_offset_m=_column(constants, "front_offset_m"),
+            length_m=_column(constants, "length_m"), width_m=_column(constants, "width_m"),
+            limits=[m.platoon.limits for m in members], path=[m.path for m in members],
+            scan=[s if isinstance(s, LaserScan) else None for s in scans],
+        )  # fmt: skip
+
+        def build(row: int) -> Observation:
+            return observation(members[row], time_s, dt_s, kin[row], constants[row])
+
+        observations = ObservationRows(columns, build)
         commands = step_batch([m.controller for m in members], observations)
-        for m, obs, command in zip(members, observations, commands, strict=True):
+        for m, k, command in zip(members, kin, commands, strict=True):
+            speed = k[SPEED]
             m.command = command
-            m.desired_accel_mps2 = desired_accel(m, command, ctx.dt_s, obs.speed_mps)
-            m.executed, enforced = supervise(
-                m.platoon.config.supervisor, obs, command, m.actuator.sumo_drives
-            )
+            m.desired_accel_mps2 = desired_accel(m, command, dt_s, speed)
+            m.executed, enforced = supervise_fields(
+                m.platoon.config.supervisor, command, speed, dt_s, m.platoon.limits, m.signal,
+                m.link_ahead, m.lane_change, m.vehicle_ahead, m.obstacle_ahead,
+                m.actuator.sumo_drives,
+            )  # fmt: skip
             # SUMO's model drives a `sumo_driver` member: the supervisor's state is a
             # check there, and nothing brakes, so no emergency braking is reported
             ours = m.plan.sumo_car_following is None
             if ours and enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
                 ctx.emit(EventKind.EMERGENCY_BRAKING, m)
             m.supervisor_state = enforced
+
+
+def _column(constants: list[dict[str, object]], name: str) -> NDArray[np.float64]:
+    return np.array([c[name] for c in constants], dtype=np.float64)

@@ -583,7 +583,7 @@ def crosses_before_arrival(
     moving = sideways > 0.0
     across = corridor_width_m + other_length_m * sin + other_width_m * np.abs(cos)
     stops_after = ~(sideways * sideways / (2.0 * CROSSING_DECEL_MPS2) < across)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         sooner = across / sideways < gap_m / np.maximum(speed_mps, 1e-3)
     return np.asarray(moving & stops_after & sooner)
 

@@ -10,7 +10,13 @@ from typing import ClassVar
 
 import pytest
 
-from platoon_sumo.control.base import Command, Observation, step_batch
+from platoon_sumo.control.base import (
+    Command,
+    Observation,
+    ObservationColumns,
+    ObservationRows,
+    step_batch,
+)
 from platoon_sumo.control.laser_follower import LaserFollower
 from platoon_sumo.control.paper import PaperFollower, PaperFollowerParams, PaperLeader
 from platoon_sumo.control.route_following import RouteFollowing
@@ -102,6 +108,31 @@ def test_step_batch_of_mixed_classes_equals_stepping_each_controller():
     assert BatchedCreep.groups == [2] * 400  # both, as one group, every step
     modes = {c.mode for c, _ in batch if isinstance(c, LaserFollower)}
     assert "following" in modes
+
+
+def test_observations_as_columns_are_built_only_where_a_controller_reads_them():
+    """The loop hands ``step_batch`` its observations as columns (``ObservationRows``):
+    the commands are those of stepping each controller with its built observation, each
+    observation is built at most once, and a laser follower whose batched step keeps
+    following never has its built."""
+    batch, single = _fleet(), _fleet()
+    lasers = {k for k, (c, _) in enumerate(batch) if isinstance(c, LaserFollower)}
+    laser_builds = 0
+    for k in range(400):
+        observations = [_observation(log, k) for _, log in batch]
+        built: list[int] = []
+
+        def build(row: int, observations: list[Observation] = observations) -> Observation:
+            built.append(row)  # noqa: B023 (this step's list, read before the next)
+            return observations[row]
+
+        rows = ObservationRows(ObservationColumns.of(observations), build)
+        got = step_batch([c for c, _ in batch], rows)  # type: ignore[misc]
+        want = [c.step(o) for (c, _), o in zip(single, observations, strict=True)]  # type: ignore[attr-defined]
+        assert got == want, k
+        assert len(built) == len(set(built)), k
+        laser_builds += len(lasers.intersection(built))
+    assert 0 < laser_builds < 0.05 * 400 * len(lasers)  # most laser steps built nothing
 
 
 @pytest.mark.parametrize("batched", [False, True])
