@@ -57,7 +57,8 @@ with `platoon-sumo run --timings` (the timed runs never read the stage clock), m
 the same time as a `--no-platoons --timings` run of the same traffic (one on each core,
 so that both see the same host load); it also gives how much longer SUMO's step takes
 with the platoon cars, per platoon vehicle-step: a part of the bench's figure that is
-not the loop's.
+not the loop's; and the bench's figure itself from those two whole processes (each
+child's own CPU), which the host's drift between the table's runs does not move.
 """
 
 from __future__ import annotations
@@ -511,16 +512,21 @@ def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Pa
             "with": cli("run", str(scenarios[c]), "--end", repr(r.end_s)),
             "without": cli("run", str(scenarios[c]), "--no-platoons", "--end", repr(r.end_s)),
         }
-        running = {}
+        running, cpu_s = {}, {}
         for name, command in commands.items():
             shutil.rmtree(outs[name], ignore_errors=True)
-            running[name] = subprocess.Popen(
-                [*command, "--out", str(outs[name]), "--quiet", "--timings"],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            )  # fmt: skip
+            with outs[name].with_suffix(".log").open("w") as log:
+                running[name] = subprocess.Popen(
+                    [*command, "--out", str(outs[name]), "--quiet", "--timings"],
+                    stdout=log, stderr=subprocess.STDOUT,
+                )  # fmt: skip
         for name, process in running.items():
-            output, _ = process.communicate()
+            # each child's own CPU (the two run at once, so not the children's total)
+            _, status, usage = os.wait4(process.pid, 0)
+            process.returncode = os.waitstatus_to_exitcode(status)
+            cpu_s[name] = usage.ru_utime + usage.ru_stime
             if process.returncode != 0:
+                output = outs[name].with_suffix(".log").read_text(encoding="utf-8")
                 raise SystemExit(f"timings run ({name} platoons) failed: {output.strip()}")
         parts = pd.read_csv(outs["with"] / "timings.csv")
         bare = pd.read_csv(outs["without"] / "timings.csv")
@@ -532,8 +538,11 @@ def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Pa
         extra_us = (step_s - bare_step_s) / vehicle_steps * 1e6
         per = parts.set_index("part")["us_per_platoon_vehicle_step"]
         shown = ", ".join(f"{name} {per[name]:.1f}" for name in parts["part"].head(9))
+        paired_us = (cpu_s["with"] - cpu_s["without"]) / max(r.vehicle_steps, 1) * 1e6
         lines.append(
-            f"- {c} platoon vehicles: the loop's own "
+            f"- {c} platoon vehicles: the whole processes side by side {paired_us:.0f} µs "
+            f"({cpu_s['with']:.1f} against {cpu_s['without']:.1f} s, the table's measure "
+            f"with both runs under the same host load); the loop's own "
             f"{ours['us_per_platoon_vehicle_step'].sum():.0f} µs; SUMO's step "
             f"{extra_us:.0f} µs more than without the platoon cars ({step_s:.1f} against "
             f"{bare_step_s:.1f} s); {shown} µs"
