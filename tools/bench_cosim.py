@@ -58,7 +58,9 @@ the same time as a `--no-platoons --timings` run of the same traffic (one on eac
 so that both see the same host load); it also gives how much longer SUMO's step takes
 with the platoon cars, per platoon vehicle-step: a part of the bench's figure that is
 not the loop's; and the bench's figure itself from those two whole processes (each
-child's own CPU), which the host's drift between the table's runs does not move.
+child's own CPU), which the host's drift between the table's runs does not move. It
+then runs SUMO alone beside the co-simulation without platoons, for the no-platoons
+ratio under the same host load.
 """
 
 from __future__ import annotations
@@ -512,22 +514,10 @@ def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Pa
             "with": cli("run", str(scenarios[c]), "--end", repr(r.end_s)),
             "without": cli("run", str(scenarios[c]), "--no-platoons", "--end", repr(r.end_s)),
         }
-        running, cpu_s = {}, {}
-        for name, command in commands.items():
-            shutil.rmtree(outs[name], ignore_errors=True)
-            with outs[name].with_suffix(".log").open("w") as log:
-                running[name] = subprocess.Popen(
-                    [*command, "--out", str(outs[name]), "--quiet", "--timings"],
-                    stdout=log, stderr=subprocess.STDOUT,
-                )  # fmt: skip
-        for name, process in running.items():
-            # each child's own CPU (the two run at once, so not the children's total)
-            _, status, usage = os.wait4(process.pid, 0)
-            process.returncode = os.waitstatus_to_exitcode(status)
-            cpu_s[name] = usage.ru_utime + usage.ru_stime
-            if process.returncode != 0:
-                output = outs[name].with_suffix(".log").read_text(encoding="utf-8")
-                raise SystemExit(f"timings run ({name} platoons) failed: {output.strip()}")
+        for name, out in outs.items():
+            shutil.rmtree(out, ignore_errors=True)
+            commands[name] += ["--out", str(out), "--quiet", "--timings"]
+        cpu_s = side_by_side(commands, results / f"timings_{c}")
         parts = pd.read_csv(outs["with"] / "timings.csv")
         bare = pd.read_csv(outs["without"] / "timings.csv")
         ours = parts[~parts["kind"].isin([SUMO, OUTSIDE])]
@@ -546,6 +536,56 @@ def stage_timings(cosim: dict[int, Run], scenarios: dict[int, Path], results: Pa
             f"{ours['us_per_platoon_vehicle_step'].sum():.0f} µs; SUMO's step "
             f"{extra_us:.0f} µs more than without the platoon cars ({step_s:.1f} against "
             f"{bare_step_s:.1f} s); {shown} µs"
+        )
+    return lines
+
+
+def side_by_side(commands: dict[str, list[str]], logs: Path) -> dict[str, float]:
+    """Run the commands at the same time (one on each core, so that all see the same host
+    load) and return each one's own CPU time [s] (its log: `logs` with the name added)."""
+    running = {}
+    for name, command in commands.items():
+        with Path(f"{logs}_{name}.log").open("w") as log:
+            running[name] = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
+    cpu_s = {}
+    for name, process in running.items():
+        # each child's own CPU (they run at once: not the children's total)
+        _, status, usage = os.wait4(process.pid, 0)
+        process.returncode = os.waitstatus_to_exitcode(status)
+        cpu_s[name] = usage.ru_utime + usage.ru_stime
+        if process.returncode != 0:
+            output = Path(f"{logs}_{name}.log").read_text(encoding="utf-8")
+            raise SystemExit(f"run '{name}' failed: {output.strip()}")
+    return cpu_s
+
+
+def baselines_side_by_side(
+    scenarios: dict[float, Path], sumo_alone: Callable[[Path, float], list[str]], results: Path
+) -> list[str]:
+    """SUMO alone and the co-simulation without platoons (of `scenarios`, by end time)
+    run at the same time: the table's no-platoons ratio with both under the same host
+    load."""
+    lines = []
+    for end, scenario in scenarios.items():
+        outs = {
+            "alone": results / f"paired_alone_{end:g}",
+            "bare": results / f"paired_bare_{end:g}",
+        }
+        print(f"side by side: SUMO alone and no platoons, {end:g} s", flush=True)
+        for out in outs.values():
+            shutil.rmtree(out, ignore_errors=True)
+        cpu_s = side_by_side(
+            {
+                "alone": sumo_alone(outs["alone"], end),
+                "bare": cli("run", str(scenario), "--out", str(outs["bare"]), "--quiet",
+                            "--no-platoons", "--end", repr(end)),
+            },
+            results / f"paired_{end:g}",
+        )  # fmt: skip
+        lines.append(
+            f"- no platoons against SUMO alone ({end:g} s), the two side by side: "
+            f"{cpu_s['bare'] / cpu_s['alone']:.2f}x ({cpu_s['bare']:.1f} against "
+            f"{cpu_s['alone']:.1f} s)"
         )
     return lines
 
@@ -734,7 +774,15 @@ def main(argv: list[str] | None = None) -> int:
         alone[end], bare[end] = runs[0], runs[1]
         cosim.update(zip(group, runs[2:], strict=True))
 
-    stage_lines = stage_timings(cosim, scenarios, results) if args.timings else []
+    stage_lines = []
+    if args.timings:
+        firsts = {end_for[c]: scenarios[c] for c in reversed(cases) if end_for[c] in alone}
+
+        def sumo_alone(out: Path, end: float) -> list[str]:
+            return sumo_alone_command(net, routes_file, out, args.seed, end)
+
+        stage_lines = stage_timings(cosim, scenarios, results)
+        stage_lines += baselines_side_by_side(firsts, sumo_alone, results)
     elapsed_min = (time.perf_counter() - started) / 60.0
     lines = [
         f"### {args.label}",
