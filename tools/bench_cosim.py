@@ -548,11 +548,12 @@ def side_by_side(commands: dict[str, list[str]], logs: Path) -> dict[str, float]
         with Path(f"{logs}_{name}.log").open("w") as log:
             running[name] = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
     cpu_s = {}
-    for name, process in running.items():
+    for name, process in running.items():  # every child waited for, failed or not
         # each child's own CPU (they run at once: not the children's total)
         _, status, usage = os.wait4(process.pid, 0)
         process.returncode = os.waitstatus_to_exitcode(status)
         cpu_s[name] = usage.ru_utime + usage.ru_stime
+    for name, process in running.items():
         if process.returncode != 0:
             output = Path(f"{logs}_{name}.log").read_text(encoding="utf-8")
             raise SystemExit(f"run '{name}' failed: {output.strip()}")
