@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import literal_unroll, njit
 
 from platoon_sumo.kernels.follower import follow_kernel, perceive_kernel
 from platoon_sumo.kernels.route import (
@@ -399,43 +399,10 @@ def following_batch_kernel(
             s[S_HAS_SINCE] != 0.0, s[S_SINCE],
         )  # fmt: skip
         row = out[j]
-        row[0] = res[0]
-        row[1] = res[1]
-        row[2] = res[2]
-        row[3] = res[3]
-        row[4] = res[4]
-        row[5] = res[5]
-        row[6] = res[6]
-        row[7] = res[7]
-        row[8] = res[8]
-        row[9] = res[9]
-        row[10] = res[10]
-        row[11] = res[11]
-        row[12] = res[12]
-        row[13] = res[13]
-        row[14] = res[14]
-        row[15] = res[15]
-        row[16] = res[16]
-        row[17] = res[17]
-        row[18] = res[18]
-        row[19] = res[19]
-        row[20] = res[20]
-        row[21] = res[21]
-        row[22] = res[22]
-        row[23] = res[23]
-        row[24] = res[24]
-        row[25] = res[25]
-        row[26] = res[26]
-        row[27] = res[27]
-        row[28] = res[28]
-        row[29] = res[29]
-        row[30] = res[30]
-        row[31] = res[31]
-        row[32] = res[32]
-        row[33] = res[33]
-        row[34] = res[34]
-        row[35] = res[35]
-        row[36] = res[36]
+        i = 0
+        for value in literal_unroll(res):  # its values, mixed types, as numbers
+            row[i] = value
+            i += 1  # noqa: SIM113 (numba unrolls no enumerate of literal_unroll)
         if res[0] != FOLLOWED:
             continue
         # booked as LaserFollower._fused_apply and RearTracker.record_step book it
