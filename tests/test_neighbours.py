@@ -1,0 +1,154 @@
+"""The neighbour kernels against brute force, and the world read around the platoon
+vehicles (`SumoBackend.snapshot`) against every vehicle SUMO has."""
+
+from __future__ import annotations
+
+import libsumo
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from platoon_sumo.kernels.neighbours import lanes_within, within_radius
+from platoon_sumo.sumo.backend import (
+    _LANE_SHAPE_TOLERANCE_M,
+    SumoBackend,
+    SumoOptions,
+    _LaneGrid,
+)
+from tests.helpers import URBAN_GRID_NET
+
+coordinates = st.floats(-200.0, 200.0, allow_nan=False)
+points = st.lists(st.tuples(coordinates, coordinates), min_size=1, max_size=12)
+
+
+def segment_distances(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """(points, segments) distances by projection clamped to each segment."""
+    a, b = segments[None, :, :2], segments[None, :, 2:]
+    p = points[:, None, :]
+    ab = b - a
+    squared = (ab * ab).sum(-1)
+    t = np.where(squared > 0, ((p - a) * ab).sum(-1) / np.where(squared > 0, squared, 1), 0)
+    closest = a + np.clip(t, 0, 1)[..., None] * ab
+    return np.hypot(*np.moveaxis(closest - p, -1, 0))
+
+
+class _Lanes:
+    """A stand-in for libsumo's lane domain (its method names): shapes and widths of
+    made-up lanes."""
+
+    def __init__(self, shapes: list[list[tuple[float, float]]], widths: list[float]):
+        self.shapes = {f"l{k:02d}": s for k, s in enumerate(shapes)}
+        self.widths = dict(zip(self.shapes, widths, strict=True))
+
+    def getIDList(self):
+        return list(self.shapes)
+
+    def getShape(self, lane):
+        return self.shapes[lane]
+
+    def getWidth(self, lane):
+        return self.widths[lane]
+
+
+class _Api:
+    def __init__(self, lanes: _Lanes):
+        self.lane = lanes
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    centres=points,
+    candidates=st.lists(st.tuples(coordinates, coordinates), max_size=30),
+    radius=st.floats(0.0, 120.0),
+)
+def test_within_radius_is_any_centre_within_the_radius(centres, candidates, radius):
+    c = np.array(centres, dtype=np.float64).reshape(-1, 2)
+    p = np.array(candidates, dtype=np.float64).reshape(-1, 2)
+    expected = (np.hypot(*np.moveaxis(p[:, None] - c[None], -1, 0)) <= radius).any(axis=1)
+    np.testing.assert_array_equal(within_radius(c, p, radius), expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    shapes=st.lists(
+        st.lists(st.tuples(coordinates, coordinates), min_size=1, max_size=5),
+        min_size=1,
+        max_size=12,
+    ),
+    widths=st.lists(st.floats(2.0, 6.0), min_size=12, max_size=12),
+    centres=points,
+    radius=st.floats(0.0, 120.0),
+    cell_m=st.sampled_from([5.0, 50.0, 400.0]),
+)
+def test_lane_grid_lists_exactly_the_lanes_within_reach(shapes, widths, centres, radius, cell_m):
+    """A lane is listed where one of its segments lies within the radius plus its pad
+    (half its width and the tolerance) of a point: brute force over every segment."""
+    lanes = _Lanes(shapes, widths[: len(shapes)])
+    grid = _LaneGrid.build(_Api(lanes), cell_m)  # type: ignore[arg-type]
+    p = np.array(centres, dtype=np.float64)
+    expected = []
+    for lane, shape in lanes.shapes.items():
+        s = np.array(shape if len(shape) > 1 else shape * 2, dtype=np.float64)
+        segments = np.hstack([s[:-1], s[1:]])
+        pad = 0.5 * lanes.widths[lane] + _LANE_SHAPE_TOLERANCE_M
+        if (segment_distances(p, segments) <= radius + pad + 1e-9).any():
+            expected.append(lane)
+    assert grid.near(p, radius) == expected
+
+
+def test_lanes_within_marks_nothing_without_points():
+    grid = _LaneGrid.build(_Api(_Lanes([[(0.0, 0.0), (10.0, 0.0)]], [3.2])), 50.0)  # type: ignore[arg-type]
+    assert grid.near(np.zeros((0, 2)), 50.0) == []
+    assert not lanes_within(
+        np.zeros((0, 2)), 1.0, grid.origin, grid.cell_m, grid.cells_y, grid.cell_starts,
+        grid.cell_segments, grid.segments, grid.pads, grid.segment_lane, 1,
+    ).any()  # fmt: skip
+
+
+FLOWS = "<routes>{}</routes>".format(
+    "".join(
+        f'<flow id="{r}" route="{r}" begin="0" end="200" period="1.5" departLane="random" '
+        'departPosLat="random"/>'
+        for r in ("cross_town", "west_east", "east_west", "south_north", "north_south")
+    )
+)
+
+
+@pytest.fixture(scope="module")
+def urban_traffic(tmp_path_factory):
+    """The urban grid with flows along its named routes, 120 s in: a few hundred cars,
+    on the sublane model (cars off their lanes' centres)."""
+    flows = tmp_path_factory.mktemp("flows") / "flows.rou.xml"
+    flows.write_text(FLOWS, encoding="utf-8")
+    routes = (str(URBAN_GRID_NET.with_name("urban_grid.rou.xml")), str(flows))
+    backend = SumoBackend(SumoOptions(str(URBAN_GRID_NET), 0.1, 1, route_files=routes))
+    backend.start()
+    try:
+        for _ in range(1200):
+            backend.step()
+        yield backend
+    finally:
+        backend.close()
+
+
+@pytest.mark.parametrize("radius_m", [5.0, 43.1, 150.0])
+def test_snapshot_holds_every_vehicle_within_the_radius_of_the_given_ones(urban_traffic, radius_m):
+    """The lanes near the given cars are listed, and only those: the snapshot still
+    holds every vehicle whose front bumper is within the radius of one of theirs,
+    with its own lane, position, heading and speed, as SUMO reads each of them."""
+    everyone = list(libsumo.vehicle.getIDList())
+    assert len(everyone) > 100
+    wanted = everyone[::15]
+    world = urban_traffic.snapshot(wanted, radius_m)
+    xy = np.array([libsumo.vehicle.getPosition(v) for v in everyone])
+    centres = xy[[everyone.index(v) for v in wanted]]
+    distance = np.hypot(*np.moveaxis(xy[:, None] - centres[None], -1, 0)).min(axis=1)
+    expected = {v for v, d in zip(everyone, distance, strict=True) if d <= radius_m}
+    assert set(world.ids) == expected | set(wanted)
+    assert world.ids[: len(wanted)] == tuple(wanted)
+    for k, vid in enumerate(world.ids):
+        assert world.lane_ids[k] == libsumo.vehicle.getLaneID(vid)
+        assert (world.front_x_m[k], world.front_y_m[k]) == libsumo.vehicle.getPosition(vid)
+        assert world.speed_mps[k] == libsumo.vehicle.getSpeed(vid)
+        assert world.index[vid] == k
