@@ -15,7 +15,7 @@ import itertools
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -309,21 +309,25 @@ class SumoBackend:
         if not wanted:
             return _empty_world(self.time_s)
         position = veh.getPosition
-        centres = np.array(list(map(position, wanted)), dtype=np.float64)
+        centres = _points(map(position, wanted), len(wanted))
         listing = self._api.lane.getLastStepVehicleIDs
-        lane_of: dict[str, str] = dict.fromkeys(wanted, "")  # each vehicle's first lane
+        lane_of: dict[str, str] = {}  # each vehicle's lane, in the order first listed
         for lane in self._lanes_near(centres, radius_m):
             for vid in listing(lane):
                 lane_of.setdefault(vid, lane)
-        others = list(itertools.islice(lane_of, len(wanted), None))
-        other_lanes = list(itertools.islice(lane_of.values(), len(wanted), None))
+        # SUMO lists a vehicle on the lane its front is on, and that lane is near it; a
+        # given vehicle on none (teleporting) is asked
+        lanes_wanted = [lane_of.get(vid) or veh.getLaneID(vid) for vid in wanted]
+        given = set(wanted)
+        others = [vid for vid in lane_of if vid not in given]
+        other_lanes = [lane_of[vid] for vid in others]
         near: list[int] = []
         if others:
-            positions = np.array(list(map(position, others)), dtype=np.float64)
+            positions = _points(map(position, others), len(others))
             near = np.flatnonzero(within_radius(centres, positions, radius_m)).tolist()
             centres = np.concatenate([centres, positions[near]])
         ids = (*wanted, *(others[k] for k in near))
-        lanes = (*(veh.getLaneID(vid) for vid in wanted), *(other_lanes[k] for k in near))
+        lanes = (*lanes_wanted, *(other_lanes[k] for k in near))
         world = self._last_read = self._read(ids, centres, lanes)
         return world
 
@@ -335,9 +339,7 @@ class SumoBackend:
         get_angle, get_speed, geometry = veh.getAngle, veh.getSpeed, self._geometry
         angle = np.fromiter(map(get_angle, ids), np.float64, n)
         speed = np.fromiter(map(get_speed, ids), np.float64, n)
-        dims = np.array(
-            [geometry.get(vid) or self._size(vid) for vid in ids], dtype=np.float64
-        ).reshape(n, 2)
+        dims = _points((geometry.get(vid) or self._size(vid) for vid in ids), n)
         return WorldSnapshot(
             time_s=self.time_s,
             ids=ids,
@@ -1327,6 +1329,11 @@ def resolve_sumo_path(value: str) -> Path:
     if value.startswith("sumo:"):
         return Path(sumo.SUMO_HOME) / value[len("sumo:") :]
     return Path(value)
+
+
+def _points(pairs: Iterable[tuple[float, float]], n: int) -> NDArray[np.float64]:
+    """`n` pairs as an (n, 2) array (without the per-pair cost of `np.array`)."""
+    return np.fromiter(itertools.chain.from_iterable(pairs), np.float64, 2 * n).reshape(n, 2)
 
 
 def _empty_world(time_s: float) -> WorldSnapshot:
