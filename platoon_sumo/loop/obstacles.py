@@ -17,7 +17,7 @@ from platoon_sumo.kernels.lanes import lane_position, moved_along_lanes
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, SPEED, Member
 from platoon_sumo.loop.paths import PathStack
-from platoon_sumo.loop.progress import link_ahead
+from platoon_sumo.loop.progress import at_light, link_ahead
 from platoon_sumo.path import RoutePath
 from platoon_sumo.sumo.network import Network
 from platoon_sumo.world import VehicleAhead, WorldSnapshot
@@ -285,7 +285,8 @@ class ObstaclesAhead:
         on_lane: dict[str, list[int]] = {}
         found: list[tuple[int, int, int, float]] = []
         held, self._yielding = self._yielding, {}
-        near_end = []  # members near their lane's end: (index, member, world row, lane)
+        # members near their lane's end: (index, member, world row, lane, to its end [m])
+        near_end = []
         for j, (m, corridor_m) in enumerate(zip(members, table[:, 3].tolist(), strict=True)):
             end_m = m.link_distance_m
             if end_m is None or end_m > corridor_m:
@@ -293,14 +294,14 @@ class ObstaclesAhead:
             me = world.index[m.id]
             lane = world.lane_ids[me]
             if lane and lane[0] != ":":
-                near_end.append((j, m, me, lane))
+                near_end.append((j, m, me, lane, end_m))
         if near_end:  # the moving cars on those members' lanes
             members_ids = {m.id for m in ctx.fleet}
-            wanted = {lane for *_, lane in near_end}
+            wanted = {lane for *_, lane, _ in near_end}
             for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
                 if world.lane_ids[i] in wanted:
                     on_lane.setdefault(world.lane_ids[i], []).append(i)
-        for j, m, me, lane in near_end:
+        for j, m, me, lane, end_m in near_end:
             # a car beside has its front within a car's length along the lane, so
             # within that and the lane's width in the plane: SUMO is asked only then
             reach = backend.lane_width(lane) + m.platoon.config.vehicle.length_m
@@ -314,8 +315,8 @@ class ObstaclesAhead:
                 for i in on_lane.get(lane, ())
             ):
                 continue
-            link = link_ahead(ctx, m)  # SUMO's link query only now: is there one?
-            if link is None:
+            # SUMO's link query only now, and not at a light: is there one?
+            if not at_light(m, end_m) and link_ahead(ctx, m) is None:
                 continue
             if lane not in occupants:
                 occupants[lane] = backend.lane_occupants(lane)
@@ -325,7 +326,7 @@ class ObstaclesAhead:
             back = mine - m.platoon.config.vehicle.length_m
             mine_next: str | None = None
             for other, front, speed, length in occupants[lane]:
-                to_end = link.distance_m - (front - mine)
+                to_end = end_m - (front - mine)
                 if (
                     other == m.id
                     or speed < STANDING_MPS
@@ -348,7 +349,7 @@ class ObstaclesAhead:
                 if row < 0 or self._lanes.successor(row) < 0:
                     continue
                 stop = entry_stop_m(
-                    link.distance_m, self._lanes.length_to_exit(self._lanes.successor(row)),
+                    end_m, self._lanes.length_to_exit(self._lanes.successor(row)),
                     length, m.platoon.config.vehicle.min_gap_m, after == mine_next,
                 )  # fmt: skip
                 if stop is None:

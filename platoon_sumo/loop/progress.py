@@ -55,6 +55,15 @@ def link_ahead(ctx: StepContext, m: Member) -> LinkAhead | None:
     return m.link_ahead
 
 
+def at_light(m: Member, lane_end_m: float) -> bool:
+    """Whether the link at the end of `m`'s lane (`lane_end_m` ahead) is its next
+    light's: SUMO's next light on the route lies exactly at the lane's end
+    (`SumoBackend.route_contexts` measures both from the same lane position). There is
+    then a link, and it shows the light's state, which the stages that would otherwise
+    make SUMO's link query (about 25 µs) need to know."""
+    return m.signal is not None and m.signal.distance_m == lane_end_m
+
+
 class RouteProgress:
     def __init__(self) -> None:
         self._horizons: dict[str, tuple[float, float]] = {}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from platoon_sumo.events import EventKind
 from platoon_sumo.loop.context import StepContext
-from platoon_sumo.loop.progress import link_ahead
+from platoon_sumo.loop.progress import at_light, link_ahead
 
 #: A platoon car standing (below `STILL_MPS` [m/s]) this long [s] within `AT_LINK_M`
 #: [m] of a closed unsignalised link takes the junction once every vehicle it yields
@@ -46,8 +46,15 @@ class Standoffs:
                 continue
             end_m = m.link_distance_m
             link = None
-            if end_m is not None and end_m <= AT_LINK_M and world.speed_mps[i] < STILL_MPS:
-                link = link_ahead(ctx, m)  # SUMO's link query only for a car standing at it
+            if (
+                end_m is not None
+                and end_m <= AT_LINK_M
+                and world.speed_mps[i] < STILL_MPS
+                and not at_light(m, end_m)
+            ):
+                # SUMO's link query only for a car standing at it, and not at a light: a
+                # light's link shows the light's state, never an unsignalised yield
+                link = link_ahead(ctx, m)
             if link is None or link.state not in UNSIGNALISED_YIELD or not link.must_yield:
                 self._since.pop(m.id, None)
                 continue
