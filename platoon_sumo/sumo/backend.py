@@ -1376,11 +1376,11 @@ class _LaneGrid:
         segments, pads, owners = [], [], []
         for k, lane in enumerate(lane_ids):
             shape = np.asarray(api.lane.getShape(lane), dtype=np.float64).reshape(-1, 2)
-            if len(shape) == 1:
+            if len(shape) == 1:  # a point: a segment of no length
                 shape = np.concatenate([shape, shape])
             segments.append(np.hstack([shape[:-1], shape[1:]]))
-            pads.append(np.full(len(shape) - 1, 0.5 * float(api.lane.getWidth(lane))))
-            owners.append(np.full(len(shape) - 1, k, dtype=np.int64))
+            pads.append(np.full(max(len(shape) - 1, 0), 0.5 * float(api.lane.getWidth(lane))))
+            owners.append(np.full(max(len(shape) - 1, 0), k, dtype=np.int64))
         seg = np.concatenate(segments) if segments else np.zeros((0, 4))
         pad = np.concatenate(pads) + _LANE_SHAPE_TOLERANCE_M if pads else np.zeros(0)
         lo = np.minimum(seg[:, :2], seg[:, 2:]) - pad[:, None]
@@ -1413,8 +1413,8 @@ class _LaneGrid:
         )
 
     def near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
-        """In the order of `lane_ids` (about 340 lanes in a step near 100 platoon cars on
-        the bench's grid, where the cells around them held 440)."""
+        """In the order of `lane_ids` (on the bench's grid about 470 lanes a step near 100
+        platoon cars, where the cells around them held 564)."""
         mask = lanes_within(
             points, radius_m, self.origin, self.cell_m, self.cells_y, self.cell_starts,
             self.cell_segments, self.segments, self.pads, self.segment_lane, len(self.lane_ids),
