@@ -3,6 +3,8 @@ vehicles (`SumoBackend.snapshot`) against every vehicle SUMO has."""
 
 from __future__ import annotations
 
+import math
+
 import libsumo
 import numpy as np
 import pytest
@@ -154,4 +156,6 @@ def test_snapshot_holds_every_vehicle_within_the_radius_of_the_given_ones(urban_
         assert world.lane_ids[k] == libsumo.vehicle.getLaneID(vid)
         assert (world.front_x_m[k], world.front_y_m[k]) == libsumo.vehicle.getPosition(vid)
         assert world.speed_mps[k] == libsumo.vehicle.getSpeed(vid)
+        heading = math.radians(90.0 - libsumo.vehicle.getAngle(vid))
+        assert world.yaw_rad[k] == pytest.approx(heading, abs=1e-12)
         assert world.index[vid] == k
