@@ -192,17 +192,24 @@ class TrajectoryRecorder(StepHook):
         pred_row = np.array([row_of.get(p or "", -1) for p in pred_ids], dtype=np.intp)
         pred_speed = np.where(pred_row >= 0, speeds[pred_row], np.nan)
         gaps = np.array(vc.gap_to_predecessor_m, dtype=np.float64)
-        telemetry = [c.telemetry for c in vc.command]
-        policies = np.array(
-            [
-                (g.standstill_m, g.time_gap_s)
-                if h and t is not None and (g := t.gap_policy) is not None
-                else _NO_POLICY
-                for t, h in zip(telemetry, has_pred.tolist(), strict=True)
+        # the commands' fields in one pass: (speed, yaw rate, heading, measured gap,
+        # mode, the spacing policy's standstill gap and time gap)
+        cmd_speed, cmd_yaw_rate, cmd_heading, measured, modes, standstill, time_gap = zip(
+            *[
+                (c.speed_mps, c.yaw_rate_radps, c.heading_rad, None, None, *_NO_POLICY)
+                if (t := c.telemetry) is None
+                else (c.speed_mps, c.yaw_rate_radps, c.heading_rad, t.measured_gap_m)
+                + (t.mode or None,)
+                + (_NO_POLICY if (g := t.gap_policy) is None else (g.standstill_m, g.time_gap_s))
+                for c in vc.command
             ],
-            dtype=np.float64,
-        ).reshape(n, 2)
-        desired = desired_gap_m(policies[:, 0], policies[:, 1], speeds)
+            strict=True,
+        )
+        desired = desired_gap_m(
+            np.where(has_pred, _floats(standstill), np.nan),
+            np.where(has_pred, _floats(time_gap), np.nan),
+            speeds,
+        )
         previous = self._accel
         accels = vc.accel_mps2
         before = np.array([previous.get(vid, np.nan) for vid in ids], dtype=np.float64)
@@ -226,7 +233,6 @@ class TrajectoryRecorder(StepHook):
         ahead_id, ahead_gap = zip(
             *[(a.vehicle_id, a.gap_m) if a else _NO_AHEAD for a in vc.vehicle_ahead], strict=True
         )
-        measured = [t.measured_gap_m if t is not None else None for t in telemetry]
         return {
             "time_s": np.full(n, round(record.time_s, 6)),
             "vehicle_id": ids,
@@ -239,9 +245,9 @@ class TrajectoryRecorder(StepHook):
             "speed_mps": speeds,
             "accel_mps2": accels,
             "jerk_mps3": jerk,
-            "cmd_speed_mps": _finite([c.speed_mps for c in vc.command]),
-            "cmd_yaw_rate_radps": _floats([c.yaw_rate_radps for c in vc.command]),
-            "cmd_heading_rad": _floats([c.heading_rad for c in vc.command]),
+            "cmd_speed_mps": _finite(cmd_speed),
+            "cmd_yaw_rate_radps": _floats(cmd_yaw_rate),
+            "cmd_heading_rad": _floats(cmd_heading),
             "executed_speed_mps": _finite([c.speed_mps for c in vc.executed]),
             "route_s_m": vc.route_s_m,
             "lateral_offset_m": vc.lateral_offset_m,
@@ -264,7 +270,7 @@ class TrajectoryRecorder(StepHook):
             "predecessor_rays": rays,
             "predecessor_in_view": [int(r > 0) if r is not None else None for r in rays],
             "supervisor": [s or None for s in vc.supervisor_state],
-            "controller_mode": [t.mode or None if t is not None else None for t in telemetry],
+            "controller_mode": modes,
         }  # fmt: skip
 
     def flush(self) -> None:

@@ -6,6 +6,9 @@ read back."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -49,11 +52,15 @@ class Actuate:
         self._groups: dict[tuple[object, ...], int] = {}
 
     def __call__(self, ctx: StepContext) -> None:
-        fleet, world = ctx.fleet, ctx.world
+        world = ctx.world
         footprints = ctx.footprints if len(ctx.footprints) == len(world) else None
+        for group in ctx.fleet.fixed((self, "groups"), self._grouped):
+            self._apply(ctx, group, footprints)
+
+    def _grouped(self, members: Sequence[Member]) -> list[_Group]:
         groups: dict[int, list[Member]] = {}
         group_of = self._group_of
-        for m in fleet:
+        for m in members:
             kind = (m.platoon_id, type(m.actuator))
             number = group_of.get(kind)
             if number is None:
@@ -61,15 +68,14 @@ class Actuate:
                 key = (type(m.actuator), p.config.vehicle, p.limits, p.model)
                 number = group_of[kind] = self._groups.setdefault(key, len(self._groups))
             groups.setdefault(number, []).append(m)
-        for group in groups.values():
-            self._apply(ctx, group, footprints)
+        return [_Group.of(group) for group in groups.values()]
 
     @staticmethod
-    def _apply(ctx: StepContext, group: list[Member], footprints: FloatArray | None) -> None:
+    def _apply(ctx: StepContext, g: _Group, footprints: FloatArray | None) -> None:
         fleet, dt_s, world = ctx.fleet, ctx.dt_s, ctx.world
+        group, rows = g.members, g.rows
         platoon, actuator = group[0].platoon, group[0].actuator
         vehicle = platoon.config.vehicle
-        rows = fleet.rows(group)
         kin = fleet.kin[rows]
         executed = [m.executed for m in group]
         speed_cmd = np.array([c.speed_mps for c in executed])
@@ -79,12 +85,11 @@ class Actuate:
                 kin[:, SPEED], kin[:, ACCEL], speed_cmd, powertrain, platoon.limits, dt_s
             )
         # SUMO's car-following model decides these members' speed (`sumo_driver`)
-        by_sumo = np.array([m.plan.sumo_car_following is not None for m in group])
-        speed_cmd[by_sumo] = SUMO_DECIDES
+        speed_cmd[g.by_sumo] = SUMO_DECIDES
         for m, sent in zip(group, speed_cmd.tolist(), strict=True):
             m.speed_sent_mps = sent
         batch = ActuationBatch(
-            vehicle_ids=tuple(m.id for m in group),
+            vehicle_ids=g.ids,
             state=KinematicState(kin[:, X], kin[:, Y], kin[:, YAW], kin[:, SPEED]),
             speed_cmd_mps=speed_cmd,
             yaw_rate_cmd_radps=np.array([_yaw_rate(m, dt_s) for m in group]),
@@ -158,3 +163,23 @@ class ReadBack:
             m.sumo_capped = is_capped
             if is_capped and not m.supervisor_state:
                 m.supervisor_state = SUMO_SAFETY
+
+
+@dataclass(frozen=True)
+class _Group:
+    """Members one actuator call moves, and what stays the same about them while the
+    same members drive."""
+
+    members: list[Member]
+    rows: NDArray[np.int64]
+    ids: tuple[str, ...]
+    by_sumo: NDArray[np.bool_]
+    """Whose speed SUMO's car-following model decides (`sumo_driver`)."""
+
+    @classmethod
+    def of(cls, members: list[Member]) -> _Group:
+        rows = np.fromiter((m.row for m in members), dtype=np.int64, count=len(members))
+        by_sumo = np.array([m.plan.sumo_car_following is not None for m in members], dtype=bool)
+        for shared in (rows, by_sumo):
+            shared.flags.writeable = False
+        return cls(members, rows, tuple(m.id for m in members), by_sumo)

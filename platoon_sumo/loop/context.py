@@ -14,7 +14,7 @@ and a `RunOutcome` at the end, always, even when the run fails.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, NamedTuple, Protocol
@@ -219,8 +219,9 @@ class VehicleColumns:
 
 def vehicle_columns(fleet: Fleet) -> VehicleColumns:
     """Every member's record as columns, in the fleet's order."""
-    members = list(fleet)
+    members = fleet.members()
     kin = fleet.kin[fleet.rows(members)]
+    ids, platoons, indices, roles, lengths = fleet.fixed("vehicle columns", _fixed_columns)
     x, y, yaw, off, route_s = (kin[:, c] for c in (X, Y, YAW, FRONT_OFFSET, ROUTE_S))
     # the front bumper with `math`'s cos and sin, as `Member.front_bumper` has it
     poses = zip(x.tolist(), y.tolist(), yaw.tolist(), off.tolist(), strict=True)
@@ -228,7 +229,6 @@ def vehicle_columns(fleet: Fleet) -> VehicleColumns:
     front_x, front_y = np.array(front, dtype=np.float64).reshape(-1, 2).T
     rows = [
         (
-            m.id, m.platoon_id, m.index, m.plan.role, m.platoon.config.vehicle.length_m,
             m.path.lane_width_near(s), m.command, m.executed, m.supervisor_state, m.signal,
             m.vehicle_ahead, m.predecessor_id, m.gap_to_predecessor_m, m.predecessor_rays,
             dict(m.sensors),
@@ -236,15 +236,26 @@ def vehicle_columns(fleet: Fleet) -> VehicleColumns:
         for m, s in zip(members, route_s.tolist(), strict=True)
     ]  # fmt: skip
     (
-        ids, platoons, indices, roles, lengths, widths, commands, executed, supervisor,
-        signals, aheads, predecessors, gaps, rays, sensors,
-    ) = tuple(zip(*rows, strict=True)) if rows else ((),) * 15  # fmt: skip
+        widths, commands, executed, supervisor, signals, aheads, predecessors, gaps, rays,
+        sensors,
+    ) = tuple(zip(*rows, strict=True)) if rows else ((),) * 10  # fmt: skip
     return VehicleColumns(
         ids, platoons, indices, roles, x.copy(), y.copy(), yaw.copy(), front_x.copy(),
-        front_y.copy(), kin[:, SPEED].copy(), kin[:, ACCEL].copy(),
-        np.array(lengths, dtype=np.float64), route_s.copy(), kin[:, LATERAL].copy(),
-        np.array(widths, dtype=np.float64), commands, executed, supervisor, signals, aheads,
-        predecessors, gaps, rays, sensors,
+        front_y.copy(), kin[:, SPEED].copy(), kin[:, ACCEL].copy(), lengths.copy(),
+        route_s.copy(), kin[:, LATERAL].copy(), np.array(widths, dtype=np.float64), commands,
+        executed, supervisor, signals, aheads, predecessors, gaps, rays, sensors,
+    )  # fmt: skip
+
+
+def _fixed_columns(
+    members: Sequence[Member],
+) -> tuple[tuple[str, ...], tuple[str, ...], tuple[int, ...], tuple[str, ...], FloatArray]:
+    """The columns that stay the same while the same members drive: ids, platoons,
+    places in them, roles and lengths [m]."""
+    return (
+        tuple(m.id for m in members), tuple(m.platoon_id for m in members),
+        tuple(m.index for m in members), tuple(m.plan.role for m in members),
+        np.array([m.platoon.config.vehicle.length_m for m in members], dtype=np.float64),
     )  # fmt: skip
 
 

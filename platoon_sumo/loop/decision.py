@@ -3,17 +3,22 @@ supervisor, which may only lower the speed."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.control import Command, Observation
+from platoon_sumo.control import Command, Controller, Observation
 from platoon_sumo.control.base import ObservationColumns, ObservationRows, step_batch
 from platoon_sumo.events import EventKind
 from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, SPEED, YAW, Member, X, Y
+from platoon_sumo.path import RoutePath
 from platoon_sumo.sensors.laser import LaserScan
-from platoon_sumo.supervisor import EMERGENCY, supervise_fields
+from platoon_sumo.supervisor import EMERGENCY, SupervisorConfig, supervise_fields
+from platoon_sumo.vehicles import MotionLimits
 
 
 def constant_fields(m: Member) -> dict[str, object]:
@@ -70,57 +75,87 @@ def desired_accel(m: Member, command: Command, dt_s: float, speed_mps: float) ->
 
 
 class Decide:
-    def __init__(self) -> None:
-        self._constants: dict[str, tuple[Member, dict[str, object]]] = {}
-        """Each member's `constant_fields`, by id (with the member they were made for)."""
-
-    def _constant_fields(self, m: Member) -> dict[str, object]:
-        known = self._constants.get(m.id)
-        if known is None or known[0] is not m:
-            known = self._constants[m.id] = (m, constant_fields(m))
-        return known[1]
-
     def __call__(self, ctx: StepContext) -> None:
-        members = list(ctx.fleet)
+        members = ctx.fleet.members()
         if not members:
             return
         time_s, dt_s = ctx.world.time_s, ctx.dt_s
+        fixed = ctx.fleet.fixed("decide", _FixedFields.of)
         kin_rows = ctx.fleet.kin[ctx.fleet.rows(members)]
         kin = kin_rows.tolist()
-        constants = [self._constant_fields(m) for m in members]
-        steers = np.array([m.actuator.steers for m in members], dtype=bool)
         scans = [m.sensors.get("laser") for m in members]
+        n = len(members)
         columns = ObservationColumns(
-            time_s=np.full(len(members), time_s), dt_s=np.full(len(members), dt_s),
+            time_s=np.full(n, time_s), dt_s=np.full(n, dt_s),
             x_m=kin_rows[:, X], y_m=kin_rows[:, Y],
             yaw_rad=kin_rows[:, YAW], speed_mps=kin_rows[:, SPEED],
-            lane_offset_m=np.where(steers, 0.0, kin_rows[:, LATERAL]),
-            front_offset_m=_column(constants, "front_offset_m"),
-            length_m=_column(constants, "length_m"), width_m=_column(constants, "width_m"),
-            limits=[m.platoon.limits for m in members], path=[m.path for m in members],
+            lane_offset_m=np.where(fixed.steers, 0.0, kin_rows[:, LATERAL]),
+            front_offset_m=fixed.front_offset_m, length_m=fixed.length_m,
+            width_m=fixed.width_m, limits=fixed.limits, path=fixed.paths,
             scan=[s if isinstance(s, LaserScan) else None for s in scans],
         )  # fmt: skip
+        constants = fixed.constants
 
         def build(row: int) -> Observation:
             return observation(members[row], time_s, dt_s, kin[row], constants[row])
 
         observations = ObservationRows(columns, build)
-        commands = step_batch([m.controller for m in members], observations)
-        for m, k, command in zip(members, kin, commands, strict=True):
+        commands = step_batch(fixed.controllers, observations)
+        for m, k, command, supervisor, ours in zip(
+            members, kin, commands, fixed.supervisors, fixed.ours, strict=True
+        ):
             speed = k[SPEED]
             m.command = command
             m.desired_accel_mps2 = desired_accel(m, command, dt_s, speed)
             m.executed, enforced = supervise_fields(
-                m.platoon.config.supervisor, command, speed, dt_s, m.platoon.limits, m.signal,
-                m.link_ahead, m.lane_change, m.vehicle_ahead, m.obstacle_ahead,
-                m.actuator.sumo_drives,
+                supervisor, command, speed, dt_s, m.platoon.limits, m.signal, m.link_ahead,
+                m.lane_change, m.vehicle_ahead, m.obstacle_ahead, m.actuator.sumo_drives,
             )  # fmt: skip
             # SUMO's model drives a `sumo_driver` member: the supervisor's state is a
             # check there, and nothing brakes, so no emergency braking is reported
-            ours = m.plan.sumo_car_following is None
             if ours and enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
                 ctx.emit(EventKind.EMERGENCY_BRAKING, m)
             m.supervisor_state = enforced
+
+
+@dataclass(frozen=True)
+class _FixedFields:
+    """What `Decide` hands on that stays the same while the same members drive."""
+
+    constants: list[dict[str, object]]
+    """Each member's `constant_fields`."""
+    steers: NDArray[np.bool_]
+    front_offset_m: NDArray[np.float64]
+    length_m: NDArray[np.float64]
+    width_m: NDArray[np.float64]
+    limits: list[MotionLimits]
+    paths: list[RoutePath]
+    controllers: list[Controller]
+    supervisors: list[SupervisorConfig]
+    ours: list[bool]
+    """Whether the member's own controller drives it (not SUMO's car following)."""
+
+    @classmethod
+    def of(cls, members: Sequence[Member]) -> _FixedFields:
+        constants = [constant_fields(m) for m in members]
+        steers = np.array([m.actuator.steers for m in members], dtype=bool)
+        front_offset, length, width = (
+            _column(constants, name) for name in ("front_offset_m", "length_m", "width_m")
+        )
+        for shared in (steers, front_offset, length, width):  # handed on every step
+            shared.flags.writeable = False
+        return cls(
+            constants=constants,
+            steers=steers,
+            front_offset_m=front_offset,
+            length_m=length,
+            width_m=width,
+            limits=[m.platoon.limits for m in members],
+            paths=[m.path for m in members],
+            controllers=[m.controller for m in members],
+            supervisors=[m.platoon.config.supervisor for m in members],
+            ours=[m.plan.sumo_car_following is None for m in members],
+        )
 
 
 def _column(constants: list[dict[str, object]], name: str) -> NDArray[np.float64]:

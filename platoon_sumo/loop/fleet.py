@@ -11,9 +11,9 @@ members only through the step context; hooks never see them (they get the step's
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +32,8 @@ KINEMATICS = (
     "front_offset_m",
 )  # fmt: skip
 X, Y, YAW, SPEED, ACCEL, ROUTE_S, LATERAL, FRONT_OFFSET = range(len(KINEMATICS))
+
+T = TypeVar("T")
 
 
 class _Column:
@@ -135,6 +137,10 @@ class Fleet:
         self.kin: NDArray[np.float64] = np.zeros((max(capacity, 1), len(KINEMATICS)))
         self._members: dict[str, Member] = {}
         self._next_row = 0
+        self._now: tuple[tuple[Member, ...], NDArray[np.int64]] | None = None
+        """`members()` and their rows, until a member joins or leaves (every stage asks)."""
+        self._fixed: dict[Hashable, Any] = {}
+        """`fixed`'s values for `members()`."""
 
     def join(
         self,
@@ -152,9 +158,11 @@ class Fleet:
         member.front_offset_m = platoon.config.vehicle.front_offset_m
         self._next_row += 1
         self._members[member.id] = member
+        self._now = None
         return member
 
     def remove(self, vehicle_id: str) -> Member | None:
+        self._now = None
         return self._members.pop(vehicle_id, None)
 
     def get(self, vehicle_id: str) -> Member | None:
@@ -164,7 +172,7 @@ class Fleet:
         return vehicle_id in self._members
 
     def __iter__(self) -> Iterator[Member]:
-        return iter(list(self._members.values()))
+        return iter(self.members())
 
     def __len__(self) -> int:
         return len(self._members)
@@ -172,8 +180,39 @@ class Fleet:
     def ids(self) -> list[str]:
         return list(self._members)
 
+    def members(self) -> tuple[Member, ...]:
+        """The members in insertion order: the same tuple until one joins or leaves, so
+        `rows` of it is known."""
+        now = self._now
+        if now is None:
+            members = tuple(self._members.values())
+            rows = self._rows_of(members)
+            rows.flags.writeable = False
+            now = self._now = (members, rows)
+            self._fixed.clear()
+        return now[0]
+
+    def fixed(self, key: Hashable, build: Callable[[tuple[Member, ...]], T]) -> T:
+        """`build(members())`, made again only once a member joins or leaves: for what
+        stays the same while the same members drive (their sizes, horizons, controllers'
+        classes), which the stages otherwise gathered member by member every step.
+        `key` names the value; one that depends on a stage's own state (numbers it
+        gives paths or groups) includes the stage."""
+        members = self.members()
+        found = self._fixed.get(key)
+        if found is None:
+            found = self._fixed[key] = build(members)
+        return cast(T, found)
+
+    def rows(self, members: Sequence[Member]) -> NDArray[np.int64]:
+        """The rows of `members` in `kin` (read-only when `members` is `members()`)."""
+        now = self._now
+        if now is not None and members is now[0]:
+            return now[1]
+        return self._rows_of(members)
+
     @staticmethod
-    def rows(members: Sequence[Member]) -> NDArray[np.int64]:
+    def _rows_of(members: Sequence[Member]) -> NDArray[np.int64]:
         return np.fromiter((m.row for m in members), dtype=np.int64, count=len(members))
 
     def front_bumpers(self, rows: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:

@@ -7,6 +7,7 @@ brake and the route-following controller (as SUMO's leader is)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,12 +103,21 @@ class ObstaclesAhead:
             row = self._rows[key] = (index, brake, path.spacing_m, stride, hw, length)
         return row
 
+    def _constants_of(self, members: Sequence[Member]) -> FloatArray:
+        """`_constants` of each member, a row each (read-only: kept while the same
+        members drive)."""
+        table = np.array([self._constants(m) for m in members]).reshape(len(members), 6)
+        table.flags.writeable = False
+        return table
+
     def __call__(self, ctx: StepContext) -> None:
         world = ctx.world
         for m in ctx.fleet:
             m.obstacle_ahead = None
             m.sidestep_m = 0.0
-        members = [m for m in ctx.fleet if m.id in world.index]
+        members: Sequence[Member] = ctx.fleet.members()
+        if not all(m.id in world.index for m in members):
+            members = [m for m in members if m.id in world.index]
         if not members or len(world.ids) < 2:
             return
         self._intrusions(ctx, members)
@@ -137,14 +147,18 @@ class ObstaclesAhead:
             if m.obstacle_ahead is None or room < m.obstacle_ahead.gap_m:
                 m.obstacle_ahead = VehicleAhead(other, room, 0.0)
 
-    def _intrusions(self, ctx: StepContext, members: list[Member]) -> None:
+    def _intrusions(self, ctx: StepContext, members: Sequence[Member]) -> None:
         world, rects = ctx.world, ctx.footprints
         table = np.empty((len(members), len(MEMBER_COLUMNS)))
         rows = ctx.fleet.rows(members)
         table[:, 1] = ctx.fleet.kin[rows, ROUTE_S]
         table[:, 2] = ctx.fleet.kin[rows, LATERAL]
         speed = np.maximum(ctx.fleet.kin[rows, SPEED], 0.0)
-        constants = np.array([self._constants(m) for m in members])
+        constants = (
+            ctx.fleet.fixed((self, "corridors"), self._constants_of)
+            if members is ctx.fleet.members()
+            else self._constants_of(members)
+        )
         table[:, 0] = constants[:, 0]
         comfort_stop = speed * speed * constants[:, 1]
         table[:, 3] = comfort_stop + LOOK_TIME_S * speed + LOOK_EXTRA_M
@@ -236,7 +250,7 @@ class ObstaclesAhead:
 
     @staticmethod
     def _leaders(
-        world: WorldSnapshot, members: list[Member]
+        world: WorldSnapshot, members: Sequence[Member]
     ) -> tuple[IntArray, FloatArray, NDArray[np.bool_]]:
         """Per member: its SUMO leader's row in `world` (-2: none, or not in it), the
         leader's gap [m], and whether SUMO drives the member."""
@@ -251,7 +265,7 @@ class ObstaclesAhead:
         return rows, gaps, drives
 
     def _entering(
-        self, ctx: StepContext, members: list[Member], table: FloatArray, stop_m: FloatArray
+        self, ctx: StepContext, members: Sequence[Member], table: FloatArray, stop_m: FloatArray
     ) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
         """The cars about to enter a junction from a member's lane beside it
         (`entering_footprints`): world rows, lane rows (the lane leading to the junction

@@ -3,7 +3,10 @@ light, leader, link), red-light violations, and removal at the route's end."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import NDArray
 
 from platoon_sumo.control.base import reads_link_ahead
 from platoon_sumo.events import EventKind
@@ -13,6 +16,8 @@ from platoon_sumo.loop.fleet import LATERAL, ROUTE_S, Member
 from platoon_sumo.loop.paths import PathStack
 from platoon_sumo.loop.ports import FloatArray
 from platoon_sumo.world import LinkAhead, SignalAhead
+
+IntArray = NDArray[np.int64]
 
 #: A member whose front bumper is this close to its path's end has arrived [m].
 ARRIVAL_TOLERANCE_M = 0.05
@@ -71,15 +76,16 @@ class RouteProgress:
         self._paths = PathStack()
 
     def __call__(self, ctx: StepContext) -> None:
-        members = list(ctx.fleet)
+        members = ctx.fleet.members()
         if not members:
             return
         fleet = ctx.fleet
         rows = fleet.rows(members)
         front_x_m, front_y_m = fleet.front_bumpers(rows)
         previous_s_m = fleet.kin[rows, ROUTE_S]
-        horizons = [self._horizons_of(m, ctx.dt_s) for m in members]
-        windows = np.array([window for window, _ in horizons])
+        ids, windows, horizons, read, path_of = fleet.fixed(
+            (self, "route progress"), lambda ms: self._fixed(ms, ctx.dt_s)
+        )
         unknown = np.flatnonzero(~np.isfinite(previous_s_m))
         if len(unknown):
             m = members[int(unknown[0])]
@@ -87,17 +93,12 @@ class RouteProgress:
                 f"{m.id}'s arc length on its route is {previous_s_m[unknown[0]]} at "
                 f"t={ctx.world.time_s:.2f} s: its state is not finite"
             )
-        route_s, lateral = self._project(members, front_x_m, front_y_m, previous_s_m, windows)
+        route_s, lateral = self._project(path_of, front_x_m, front_y_m, previous_s_m, windows)
         fleet.kin[rows, ROUTE_S] = route_s
         fleet.kin[rows, LATERAL] = lateral
         route_s_m = route_s.tolist()
         travelled = np.maximum(route_s - previous_s_m, 0.0).tolist()
-        # the link is read now for the members whose supervisor yields at junctions
-        # (those SUMO does not drive) or whose controller may read it, else on demand
-        read = [not m.actuator.sumo_drives or reads_link_ahead(type(m.controller)) for m in members]
-        contexts = ctx.backend.route_contexts(
-            [m.id for m in members], [h for _, h in horizons], read
-        )
+        contexts = ctx.backend.route_contexts(ids, horizons, read)
         for m, s_m, travelled_m, (signal, ahead, link) in zip(
             members, route_s_m, travelled, contexts, strict=True
         ):
@@ -119,14 +120,29 @@ class RouteProgress:
             if s_m >= m.path.length_m - ARRIVAL_TOLERANCE_M:
                 ctx.remove(m, arrived=True)
 
+    def _fixed(
+        self, members: Sequence[Member], dt_s: float
+    ) -> tuple[list[str], FloatArray, list[float], list[bool], IntArray]:
+        """What stays the same while the same members drive: their ids, search windows,
+        SUMO look-ahead horizons [m], whether their links are read now (for the members
+        whose supervisor yields at junctions, those SUMO does not drive, or whose
+        controller may read it; else on demand) and their paths' numbers."""
+        horizons = [self._horizons_of(m, dt_s) for m in members]
+        read = [not m.actuator.sumo_drives or reads_link_ahead(type(m.controller)) for m in members]
+        path_of = np.array([self._paths.number(m.path) for m in members], dtype=np.int64)
+        return (
+            [m.id for m in members], np.array([w for w, _ in horizons]),
+            [h for _, h in horizons], read, path_of,
+        )  # fmt: skip
+
     def _project(
-        self, members: list[Member], x_m: FloatArray, y_m: FloatArray, hint_s_m: FloatArray,
+        self, path_of: IntArray, x_m: FloatArray, y_m: FloatArray, hint_s_m: FloatArray,
         window_m: FloatArray,
     ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
-        """Each member's front bumper projected on its path near its last arc length
-        (``RoutePath.project_sl``, bit for bit): (arc lengths, lateral offsets)."""
+        """Each member's front bumper projected on its path (numbers `path_of`) near its
+        last arc length (``RoutePath.project_sl``, bit for bit): (arc lengths, lateral
+        offsets)."""
         stack = self._paths
-        path_of = np.array([stack.number(m.path) for m in members], dtype=np.int64)
         xy, xy_starts = stack.stacked("xy", lambda p: p.kernel_arrays[0])
         blocks, block_starts = stack.stacked("blocks", lambda p: p.kernel_arrays[1])
         widths, _ = stack.stacked("lane widths", lambda p: p.kernel_arrays[2])

@@ -30,8 +30,8 @@ class Predecessors:
     the bumper gap to it, measured on the footprints."""
 
     def __call__(self, ctx: StepContext) -> None:
-        members = list(ctx.fleet)
-        predecessors = predecessor_ids(members)
+        members = ctx.fleet.members()
+        predecessors = ctx.fleet.fixed("predecessors", predecessor_ids)
         index, rects = ctx.world.index, ctx.footprints
         for m in members:
             pred = predecessors[m.id]

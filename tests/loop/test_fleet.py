@@ -91,3 +91,31 @@ def test_a_steps_columns_hold_each_members_own_values(write_scenario):
         )  # fmt: skip
         assert all(type(value) is float for value in record[4:15])
     assert vehicle_columns(Fleet()).records() == ()
+
+
+def test_what_is_fixed_for_the_members_is_made_again_once_one_joins_or_leaves(write_scenario):
+    """`Fleet.fixed` hands the stages the same value while the same members drive, and a
+    new one for the members there are once a member joins or leaves; `rows` of
+    `members()` is its kept, read-only array."""
+    run_plan = plan(write_scenario, members=3)
+    platoon = run_plan.platoons[0]
+    fleet = Fleet()
+    built: list[tuple[str, ...]] = []
+
+    def ids(members) -> tuple[str, ...]:
+        built.append(tuple(m.id for m in members))
+        return built[-1]
+
+    first = fleet.join(platoon.members[0], platoon, None, None, None)  # type: ignore[arg-type]
+    assert fleet.fixed("ids", ids) == (first.id,)
+    assert fleet.fixed("ids", ids) == (first.id,) and len(built) == 1  # kept
+    second = fleet.join(platoon.members[1], platoon, None, None, None)  # type: ignore[arg-type]
+    assert fleet.fixed("ids", ids) == (first.id, second.id) and len(built) == 2
+    rows = fleet.rows(fleet.members())
+    assert rows.tolist() == [0, 1] and not rows.flags.writeable
+    assert fleet.rows(fleet.members()) is rows
+    assert fleet.rows([second]).tolist() == [1] and fleet.rows([second]).flags.writeable
+    fleet.remove(first.id)
+    assert fleet.fixed("ids", ids) == (second.id,) and len(built) == 3
+    assert fleet.rows(fleet.members()).tolist() == [1]
+    assert list(fleet) == [second]

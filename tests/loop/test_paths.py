@@ -37,7 +37,8 @@ member = st.tuples(
 def test_all_members_projected_at_once_as_each_path_projects_them(members) -> None:
     """`RouteProgress`'s one kernel call gives each member's `project_sl`, bit for bit."""
     path_of, x, y, hint, window = (np.array(c) for c in zip(*members, strict=True))
-    fake = [type("M", (), {"path": PATHS[k]})() for k in path_of.tolist()]
-    s, lateral = RouteProgress()._project(fake, x, y, hint, window)  # type: ignore[arg-type]
+    progress = RouteProgress()
+    numbers = np.array([progress._paths.number(PATHS[k]) for k in path_of.tolist()])
+    s, lateral = progress._project(numbers, x, y, hint, window)
     for k, (p, xk, yk, hk, wk) in enumerate(members):
         assert (s[k], lateral[k]) == PATHS[p].project_sl(xk, yk, hk, wk)
