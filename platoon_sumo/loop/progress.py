@@ -71,8 +71,6 @@ def at_light(m: Member, lane_end_m: float) -> bool:
 
 class RouteProgress:
     def __init__(self) -> None:
-        self._horizons: dict[str, tuple[float, float]] = {}
-        """Per platoon: (search window, SUMO look-ahead horizon) [m]."""
         self._paths = PathStack()
 
     def __call__(self, ctx: StepContext) -> None:
@@ -127,12 +125,12 @@ class RouteProgress:
         SUMO look-ahead horizons [m], whether their links are read now (for the members
         whose supervisor yields at junctions, those SUMO does not drive, or whose
         controller may read it; else on demand) and their paths' numbers."""
-        horizons = [self._horizons_of(m, dt_s) for m in members]
+        windows = [max(10.0, 4.0 * m.platoon.config.vehicle.length_m) for m in members]
         read = [not m.actuator.sumo_drives or reads_link_ahead(type(m.controller)) for m in members]
         path_of = np.array([self._paths.number(m.path) for m in members], dtype=np.int64)
         return (
-            [m.id for m in members], np.array([w for w, _ in horizons]),
-            [h for _, h in horizons], read, path_of,
+            [m.id for m in members], np.array(windows),
+            [ahead_horizon_m(m, dt_s) for m in members], read, path_of,
         )  # fmt: skip
 
     def _project(
@@ -151,10 +149,3 @@ class RouteProgress:
             xy, xy_starts, blocks, block_starts, widths, geometry, path_of, x_m, y_m,
             hint_s_m, window_m,
         )  # fmt: skip
-
-    def _horizons_of(self, m: Member, dt_s: float) -> tuple[float, float]:
-        found = self._horizons.get(m.platoon_id)
-        if found is None:
-            window = max(10.0, 4.0 * m.platoon.config.vehicle.length_m)
-            found = self._horizons[m.platoon_id] = (window, ahead_horizon_m(m, dt_s))
-        return found

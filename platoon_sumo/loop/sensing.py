@@ -33,7 +33,9 @@ class Sense:
         if not members:
             return
         time_s = ctx.world.time_s
-        for group in ctx.fleet.fixed((self, "groups"), self._groups):
+        fleet = ctx.fleet
+        predecessors = fleet.fixed("predecessors", predecessor_ids)  # as `Predecessors`'
+        for group in fleet.fixed((self, "groups"), lambda ms: self._groups(ms, predecessors)):
             model, pairs = group.model, group.pairs
             if model.period_s - 1e-9 > ctx.dt_s:  # not due every step
                 due = [
@@ -53,9 +55,11 @@ class Sense:
                 if isinstance(message, LaserScan):
                     m.predecessor_rays = message.predecessor_rays or 0
 
-    def _groups(self, members: Sequence[Member]) -> list[_Group]:
+    def _groups(
+        self, members: Sequence[Member], predecessors: dict[str, str | None]
+    ) -> list[_Group]:
         """The members' sensors by model and parameters, each with what stays the same
-        while the same members drive."""
+        while the same members drive (`predecessors`: each member's)."""
         pairs: dict[int, tuple[SensorModel, list[tuple[Member, str]]]] = {}
         for m in members:
             for sensor in m.plan.sensors:
@@ -64,7 +68,6 @@ class Sense:
                 if model is None:
                     model = self._models[key] = sensor.model(sensor.params)
                 pairs.setdefault(id(model), (model, []))[1].append((m, sensor.name))
-        predecessors = predecessor_ids(members)
         return [_Group.of(model, group, predecessors) for model, group in pairs.values()]
 
 
