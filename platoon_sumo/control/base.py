@@ -211,6 +211,10 @@ class ObservationColumns:
     limits: Sequence[MotionLimits]
     path: Sequence[RoutePath]
     scan: Sequence[LaserScan | None]
+    on_sumo_lanes: Sequence[bool]
+    signal: Sequence[SignalAhead | None]
+    vehicle_ahead: Sequence[VehicleAhead | None]
+    obstacle_ahead: Sequence[VehicleAhead | None]
 
     @classmethod
     def of(cls, observations: Sequence[Observation]) -> ObservationColumns:
@@ -226,6 +230,10 @@ class ObservationColumns:
             front_offset_m=floats("front_offset_m"), length_m=floats("length_m"),
             width_m=floats("width_m"), limits=[o.limits for o in observations],
             path=[o.path for o in observations], scan=[o.scan for o in observations],
+            on_sumo_lanes=[o.on_sumo_lanes for o in observations],
+            signal=[o.signal for o in observations],
+            vehicle_ahead=[o.vehicle_ahead for o in observations],
+            obstacle_ahead=[o.obstacle_ahead for o in observations],
         )  # fmt: skip
 
 

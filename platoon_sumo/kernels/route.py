@@ -373,6 +373,60 @@ def route_step_kernel(
     return STEP_OK, s, cmd_speed, yaw_rate, lane
 
 
+ROUTE_INPUT_NAMES = (
+    "s_hint_m", "x_m", "y_m", "yaw_rad", "speed_mps", "front_offset_m", "length_m",
+    "dt_s", "lane_offset_m", "signal_limit_mps", "following_limit_mps", *PARAM_NAMES,
+)  # fmt: skip
+"""The columns of ``route_batch_kernel``'s ``inputs``: ``route_step_kernel``'s scalars
+from ``s_hint`` on, then its ``params``."""
+
+
+@njit(cache=True)
+def route_batch_kernel(
+    xy: np.ndarray,
+    xy_starts: np.ndarray,
+    blocks: np.ndarray,
+    block_starts: np.ndarray,
+    widths: np.ndarray,
+    codes: np.ndarray,
+    code_starts: np.ndarray,
+    spans: np.ndarray,
+    span_starts: np.ndarray,
+    curve: np.ndarray,
+    curve_starts: np.ndarray,
+    geometry: np.ndarray,
+    path_of: np.ndarray,
+    inputs: np.ndarray,
+) -> np.ndarray:
+    """``route_step_kernel`` for many vehicles in one call. Vehicle j is on entry
+    ``p = path_of[j]``: its path's points and lane widths are rows
+    ``xy_starts[p]:xy_starts[p + 1]`` of ``xy`` and ``widths``, its blocks, lane codes,
+    lane-change spans and curve speeds the rows of ``blocks``, ``codes``, ``spans`` and
+    ``curve`` between their starts, row p of ``geometry`` (spacing, length, last step, whether a
+    curve speed is NaN); it reads ``inputs[j]`` (``ROUTE_INPUT_NAMES``). Row j of the
+    result is its (status, arc length, speed, yaw rate, lane request)."""
+    n = path_of.shape[0]
+    out = np.empty((n, 5))
+    for j in range(n):
+        p = path_of[j]
+        a = xy_starts[p]
+        b = xy_starts[p + 1]
+        v = inputs[j]
+        g = geometry[p]
+        status, s, speed, yaw_rate, lane = route_step_kernel(
+            xy[a:b], blocks[block_starts[p] : block_starts[p + 1]], widths[a:b],
+            codes[code_starts[p] : code_starts[p + 1]], spans[span_starts[p] : span_starts[p + 1]],
+            g[:3], curve[curve_starts[p] : curve_starts[p + 1]], g[3] != 0.0, v[11:], v[0],
+            v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10],
+        )  # fmt: skip
+        out[j, 0] = status
+        out[j, 1] = s
+        out[j, 2] = speed
+        out[j, 3] = yaw_rate
+        out[j, 4] = lane
+    return out
+
+
 @njit(cache=True)
 def project_members(
     xy: np.ndarray,

@@ -93,6 +93,9 @@ class Decide:
             front_offset_m=fixed.front_offset_m, length_m=fixed.length_m,
             width_m=fixed.width_m, limits=fixed.limits, path=fixed.paths,
             scan=[s if isinstance(s, LaserScan) else None for s in scans],
+            on_sumo_lanes=fixed.on_sumo_lanes, signal=[m.signal for m in members],
+            vehicle_ahead=[m.vehicle_ahead for m in members],
+            obstacle_ahead=[m.obstacle_ahead for m in members],
         )  # fmt: skip
         constants = fixed.constants
 
@@ -130,6 +133,7 @@ class _FixedFields:
     width_m: NDArray[np.float64]
     limits: list[MotionLimits]
     paths: list[RoutePath]
+    on_sumo_lanes: list[bool]
     controllers: list[Controller]
     supervisors: list[SupervisorConfig]
     ours: list[bool]
@@ -152,6 +156,7 @@ class _FixedFields:
             width_m=width,
             limits=[m.platoon.limits for m in members],
             paths=[m.path for m in members],
+            on_sumo_lanes=[m.actuator.sumo_drives for m in members],
             controllers=[m.controller for m in members],
             supervisors=[m.platoon.config.supervisor for m in members],
             ours=[m.plan.sumo_car_following is None for m in members],

@@ -24,8 +24,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import tests.control.test_route_following as scripted
-from platoon_sumo.control.base import Command, Observation
+from platoon_sumo.control.base import Command, Observation, step_batch
 from platoon_sumo.control.route_following import RouteFollowing, RouteFollowingParams
+from platoon_sumo.errors import PluginError
 from platoon_sumo.kernels.path import profile_speed_kernel, project_kernel
 from platoon_sumo.kernels.route import BLOCK, path_blocks, profile_speed_pruned, project_pruned
 from platoon_sumo.path import LaneChange, RoutePath
@@ -116,6 +117,57 @@ def test_a_fast_car_previews_far_and_stops_early():
         return dataclasses.replace(obs, limits=limits, speed_mps=obs.speed_mps * 2.0)
 
     replay(log, log.params.fallback, fast_car)
+
+
+# ----------------------------------------------------------------------------- batched
+
+
+class _OwnStep(RouteFollowing):
+    """A subclass with its own ``step``: ``step_many`` must step it with that."""
+
+    def step(self, observation: Observation) -> Command:
+        return dataclasses.replace(super().step(observation), speed_mps=0.25)
+
+
+def test_many_vehicles_stepped_together_get_the_commands_of_their_own_steps():
+    """``RouteFollowing.step_many`` (one ``route_batch_kernel`` call for the group, on
+    the paths' stacked tables) against each controller's own ``step``, bit for bit:
+    recorded logs of several networks with every variant (lanes beside, a vehicle
+    ahead, other parameters), and a subclass with its own ``step`` in the group."""
+    cases = []
+    for k, log in enumerate(ALL_LOGS[:6]):
+        for variant in sorted(VARIANTS):
+            changes, change = VARIANTS[variant]
+            params = dataclasses.replace(log.params.fallback, **changes)  # type: ignore[arg-type]
+            cls = _OwnStep if (k, variant) == (1, "vehicle_ahead") else RouteFollowing
+            cases.append((log, change, cls(params), cls(params)))
+    steps = min(len(log.observations) for log, *_ in cases)
+    assert steps > 300 and len({id(log.observations[0].path) for log, *_ in cases}) > 2
+    requests = 0
+    for k in range(steps):
+        observations = []
+        for log, change, _, _ in cases:
+            obs = log.observations[k]
+            observations.append(change(k, obs) if change is not None else obs)
+        together = RouteFollowing.step_many([c for *_, c in cases], observations)
+        for (_, _, alone, batched), obs, got in zip(cases, observations, together, strict=True):
+            want = alone.step(obs)
+            assert got == want, f"{obs.vehicle_id} step {k}"
+            assert batched._s_m == alone._s_m
+            requests += got.lane_change != 0
+    assert requests > 100
+
+
+def test_a_vehicle_whose_batched_step_fails_is_the_one_named():
+    """A non-finite pose in the middle of a group: the run's error names that vehicle."""
+    log = ALL_LOGS[0]
+    observations = [
+        dataclasses.replace(log.observations[10], vehicle_id=f"car{k}", x_m=x)
+        for k, x in enumerate([log.observations[10].x_m, math.nan, log.observations[10].x_m])
+    ]
+    controllers = [RouteFollowing(log.params.fallback) for _ in observations]
+    with pytest.raises(PluginError, match=r"vehicle 'car1' failed .*non-finite"):
+        step_batch(controllers, observations)
 
 
 # ----------------------------------------------------------------------------- scripted
