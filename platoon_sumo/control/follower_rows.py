@@ -94,6 +94,7 @@ class PathTables:
         self._tables: dict[str, np.ndarray] = {}
         self._used: dict[str, int] = dict.fromkeys(self._names, 0)
         self._starts: dict[str, list[int]] = {name: [0] for name in self._names}
+        self._start_arrays: dict[str, NDArray[np.int64]] = {}
 
     def numbers(
         self, paths: list[object], arrays_of: Callable[[object], tuple[np.ndarray, ...]]
@@ -126,10 +127,17 @@ class PathTables:
             table[used : used + len(rows)] = rows
             self._used[name] = used + len(rows)
             self._starts[name].append(used + len(rows))
+        self._start_arrays.clear()
         return k
 
     def table(self, name: str) -> np.ndarray:
         return self._tables[name]
 
     def starts(self, name: str) -> NDArray[np.int64]:
-        return np.array(self._starts[name], dtype=np.int64)
+        """Where each path's rows of table `name` start (and the last one ends): kept
+        until a path is added (the kernels only read it; a read-only array would be
+        another type to numba)."""
+        found = self._start_arrays.get(name)
+        if found is None:
+            found = self._start_arrays[name] = np.array(self._starts[name], dtype=np.int64)
+        return found

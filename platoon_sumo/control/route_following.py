@@ -38,6 +38,7 @@ from platoon_sumo.frozen import frozen_from_dict
 from platoon_sumo.kernels.route import (
     STEP_LANE_UNREAD,
     STEP_NOT_FINITE,
+    STEP_OK,
     route_batch_kernel,
     route_step_kernel,
 )
@@ -284,8 +285,12 @@ def _step_together(
                 c._prepare(p, on_lanes[r], lim, width[r])
             if lim is not c._limits:
                 c._set_limits(lim)
-            signal_limits.append(c._signal_limit(signal[r], speed[r], dt[r]))
-            ahead_limits.append(c._ahead_limit(vehicle_ahead[r], obstacle_ahead[r]))
+            stop = signal[r]
+            signal_limits.append(
+                math.inf if stop is None else c._signal_limit(stop, speed[r], dt[r])
+            )
+            a, b = vehicle_ahead[r], obstacle_ahead[r]
+            ahead_limits.append(math.inf if a is None and b is None else c._ahead_limit(a, b))
         except Exception as exc:
             raise MemberFailure(index[j], exc) from exc
         keys.append(c._batch_key)
@@ -309,6 +314,13 @@ def _step_together(
     x, y, length, offset = cols.x_m, cols.y_m, cols.length_m, cols.lane_offset_m
     for j, (c, r, values) in enumerate(zip(controllers, rows, out.tolist(), strict=True)):
         status, s, cmd_speed, yaw_rate, lane = values
+        if status == STEP_OK:  # as `_command` makes it
+            c._s_m = s
+            commands[index[j]] = frozen_from_dict(Command, {
+                "speed_mps": cmd_speed, "yaw_rate_radps": yaw_rate, "heading_rad": None,
+                "lane_change": int(lane), "telemetry": None, "keep_lane": False,
+            })  # fmt: skip
+            continue
         try:
             commands[index[j]] = c._command(
                 int(status), s, cmd_speed, yaw_rate, int(lane), path[r], float(x[r]),

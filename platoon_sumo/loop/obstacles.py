@@ -254,14 +254,13 @@ class ObstaclesAhead:
     ) -> tuple[IntArray, FloatArray, NDArray[np.bool_]]:
         """Per member: its SUMO leader's row in `world` (-2: none, or not in it), the
         leader's gap [m], and whether SUMO drives the member."""
-        rows = np.full(len(members), -2, dtype=np.int64)
-        gaps = np.full(len(members), np.inf)
-        for j, m in enumerate(members):
-            leader = m.vehicle_ahead
-            if leader is not None:
-                rows[j] = world.index.get(leader.vehicle_id, -2)
-                gaps[j] = leader.gap_m
-        drives = np.fromiter((m.actuator.sumo_drives for m in members), bool, len(members))
+        leaders = [m.vehicle_ahead for m in members]
+        index = world.index
+        rows = np.array(
+            [-2 if a is None else index.get(a.vehicle_id, -2) for a in leaders], dtype=np.int64
+        )
+        gaps = np.array([math.inf if a is None else a.gap_m for a in leaders], dtype=np.float64)
+        drives = np.array([m.actuator.sumo_drives for m in members], dtype=bool)
         return rows, gaps, drives
 
     def _entering(
