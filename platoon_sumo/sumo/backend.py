@@ -221,6 +221,9 @@ class SumoBackend:
         self._last_read: WorldSnapshot | None = None
         """This step's world read (None once SUMO stepped): its lanes and speeds are
         SUMO's until the next step, so the route's reads take them from it."""
+        self._lane_positions: dict[str, float] = {}
+        """This step's lane positions read by `route_contexts` (cleared when SUMO steps):
+        SUMO's until the next step, so the actuation takes them from here."""
         self._polylines: dict[str, tuple[list[float], list[float], list[float], float]] = {}
         self._bends: dict[str, tuple[list[float], list[float]]] = {}
         self._lanes_behind: dict[str, list[str]] = {}
@@ -281,6 +284,7 @@ class SumoBackend:
 
     def step(self) -> None:
         self._last_read = None
+        self._lane_positions.clear()
         try:
             self._api.simulationStep()
         except self._api.TraCIException as exc:
@@ -580,7 +584,7 @@ class SumoBackend:
         gives (SUMO's strategy then picks the lane)."""
         veh = self._api.vehicle
         for vid, direction in requests.items():
-            lane_id = veh.getLaneID(vid)
+            lane_id = self._lane_now(vid)
             if not lane_id or lane_id.startswith(":"):
                 continue
             edge = self._lane_edge(lane_id)
@@ -591,7 +595,7 @@ class SumoBackend:
             length_m, changes = best
             if changes:
                 reserve = max(LANE_CHOICE_RESERVE_M, LANE_CHOICE_RESERVE_S * veh.getSpeed(vid))
-                if length_m - veh.getLanePosition(vid) < abs(changes) * reserve:
+                if length_m - self._position_now(vid) < abs(changes) * reserve:
                     continue
             # for one step: re-issued while the controller asks, never carried onto the
             # next edge (where that index may lead elsewhere)
@@ -650,14 +654,14 @@ class SumoBackend:
         offset, room, to_end = np.zeros(n), np.full(n, math.inf), np.full(n, math.inf)
         for i, vid in enumerate(vehicle_ids):
             known = self._fronts.get(vid)  # read by `body_directions` this step
-            lane_id, front = known if known is not None else (veh.getLaneID(vid), None)
+            lane_id, front = known if known is not None else (self._lane_now(vid), None)
             if not lane_id:
                 continue
             width = self._size(vid)[1]
             offset[i] = veh.getLateralLanePosition(vid)
             room[i] = max(0.5 * (self._fit_width(lane_id) - width), 0.0)
             if front is None:
-                front = veh.getLanePosition(vid)
+                front = self._position_now(vid)
             to_end[i] = self._lane_length(lane_id) - front
         return offset, room, to_end
 
@@ -763,7 +767,7 @@ class SumoBackend:
         target lane, steered back across at 2.2 m/s sideways)."""
         veh = self._api.vehicle
         handed = vid in self._handed_over
-        lane_id = veh.getLaneID(vid)
+        lane_id = self._lane_now(vid)
         speed = veh.getSpeed(vid)
         if speed < HAND_OVER_BELOW_MPS:
             slow_s = self.time_s - self._slow_since.setdefault(vid, self.time_s)
@@ -781,7 +785,7 @@ class SumoBackend:
                 del self._kept_on[vid]  # past the edge of its lane change
             needs = vid in self._kept_on
             if not needs:
-                position = veh.getLanePosition(vid)
+                position = self._position_now(vid)
                 reach = math.inf if handed else LANE_END_REACH_M
                 waited = handed or slow_s >= HAND_OVER_AFTER_S
                 own_end = self._lane_length(lane_id) + 0.1
@@ -914,7 +918,7 @@ class SumoBackend:
         veh = self._api.vehicle
         bands: dict[str, list[tuple[float, float, float, str]]] = {}
         for vid in sorted(self._handed_over):
-            lane_id = veh.getLaneID(vid)
+            lane_id = self._lane_now(vid)
             if not lane_id or lane_id[0] == ":" or veh.getSpeed(vid) >= HAND_OVER_BELOW_MPS:
                 continue
             best = veh.getBestLanes(vid)
@@ -928,7 +932,7 @@ class SumoBackend:
             target = self._edge_lateral(edge, index + offset)
             length, width = self._size(vid)
             low, high = min(centre - 0.5 * width, target), max(centre + 0.5 * width, target)
-            back = veh.getLanePosition(vid) - length
+            back = self._position_now(vid) - length
             bands.setdefault(edge, []).append((back, low, high, vid))
         waits: dict[str, tuple[str, float]] = {}
         for vid, leader in zip(vehicle_ids, leaders, strict=True):
@@ -937,11 +941,11 @@ class SumoBackend:
         if not bands:
             return waits
         for vid in vehicle_ids:
-            lane_id = veh.getLaneID(vid)
+            lane_id = self._lane_now(vid)
             if lane_id.rpartition("_")[0] not in bands:
                 continue
             edge, _, centre = self._across_edge(vid, lane_id)
-            front = veh.getLanePosition(vid)
+            front = self._position_now(vid)
             half = 0.5 * self._size(vid)[1]
             for back, low, high, other in bands[edge]:
                 gap = back - front
@@ -956,12 +960,12 @@ class SumoBackend:
         goes on to (more than `MISFIT_TOLERANCE_M`)? Moving or not: it will stop at the
         exit to move over (race circuit, seed 44: a car behind one that stopped there
         was already within the room when the other stood still)."""
-        veh = self._api.vehicle
-        lane_id = veh.getLaneID(vid)
+        lane_id = self._lane_now(vid)
         if not lane_id.startswith(":"):
             return False
         room = 0.5 * (self._fit_width(lane_id) - self._size(vid)[1])
-        return abs(veh.getLateralLanePosition(vid)) > max(room, 0.0) + MISFIT_TOLERANCE_M
+        lateral = self._api.vehicle.getLateralLanePosition(vid)
+        return abs(lateral) > max(room, 0.0) + MISFIT_TOLERANCE_M
 
     def _size(self, vid: str) -> tuple[float, float]:
         """A vehicle's (length, width) [m], read once."""
@@ -1020,7 +1024,7 @@ class SumoBackend:
         now = np.empty(len(vehicle_ids))
         later = np.empty(len(vehicle_ids))
         for i, (vid, ahead) in enumerate(zip(vehicle_ids, ahead_m.tolist(), strict=True)):
-            lane_id = veh.getLaneID(vid)
+            lane_id = self._lane_now(vid)
             if not lane_id:
                 self._fronts.pop(vid, None)
                 now[i] = later[i] = math.radians(90.0 - veh.getAngle(vid))
@@ -1033,7 +1037,7 @@ class SumoBackend:
                     lanes.insert(0, lane_id)
                     del lanes[4:]
             length = self._size(vid)[0]
-            front = veh.getLanePosition(vid)
+            front = self._position_now(vid)
             self._fronts[vid] = (lane_id, front)
             now[i] = self._chord(lanes, front, length)
             later[i] = self._chord(lanes, front + ahead, length)
@@ -1159,12 +1163,16 @@ class SumoBackend:
         self._tls_states.clear()  # this step's
         contexts = []
         world = self._last_read
+        positions = self._lane_positions
         for vid, horizon, read in zip(vehicle_ids, horizons_m, read_links, strict=True):
             if world is not None and (i := world.index.get(vid)) is not None:
                 lane = world.lane_ids[i]
             else:
                 lane = veh.getLaneID(vid)
-            remaining = self._lane_length(lane) - veh.getLanePosition(vid) if lane else math.inf
+            remaining = math.inf
+            if lane:
+                position = positions[vid] = veh.getLanePosition(vid)
+                remaining = self._lane_length(lane) - position
             signal = self._next_signal(vid, lane, remaining)
             ahead = self.vehicle_ahead(vid, horizon)
             link: LinkAhead | float | None = None
@@ -1224,6 +1232,23 @@ class SumoBackend:
         if length is None:
             length = self._lane_lengths[lane_id] = float(self._api.lane.getLength(lane_id))
         return length
+
+    def _lane_now(self, vid: str) -> str:
+        """The vehicle's lane as SUMO has it until its next step: from this step's world
+        read where the vehicle is in it (SUMO lists a vehicle on the lane `getLaneID`
+        gives, `snapshot`), else asked ('' for a vehicle on no lane)."""
+        world = self._last_read
+        if world is not None and (i := world.index.get(vid)) is not None:
+            return world.lane_ids[i]
+        return str(self._api.vehicle.getLaneID(vid))
+
+    def _position_now(self, vid: str) -> float:
+        """The vehicle's lane position as SUMO has it until its next step: the one
+        `route_contexts` read this step, else asked."""
+        known = self._lane_positions.get(vid)
+        if known is None:
+            return float(self._api.vehicle.getLanePosition(vid))
+        return known
 
     def vehicle_ahead(self, vehicle_id: str, horizon_m: float) -> VehicleAhead | None:
         """The nearest vehicle ahead on the route's lanes within `horizon_m` (SUMO's view).
