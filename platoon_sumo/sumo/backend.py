@@ -213,6 +213,8 @@ class SumoBackend:
         self._geometry: dict[str, tuple[float, float]] = {}
         self._min_gaps: dict[str, float] = {}
         self._lane_grid: _LaneGrid | None = None
+        self._listable: tuple[int, NDArray[np.bool_]] | None = None
+        """The lanes the world read lists, for how many vehicle types had entered."""
         self._lane_lengths: dict[str, float] = {}
         self._fit_widths: dict[str, float] = {}
         self._lane_signals: dict[str, tuple[str, str, int]] = {}
@@ -359,11 +361,18 @@ class SumoBackend:
 
     def _lanes_near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
         """Lanes (internal ones included) with a shape segment within `radius_m` of a
-        point (conservatively: by grid cell), in a fixed order."""
+        point (conservatively: by grid cell), in a fixed order; only lanes that allow a
+        vehicle class that has entered the network (no vehicle is on a lane it may not
+        use: sidewalks, crossings and walking areas, a third of the lanes of an OSM
+        city with footways, are never listed while no vehicle of a pedestrian class
+        drives)."""
         grid = self._lane_grid
         if grid is None:
             grid = self._lane_grid = _LaneGrid.build(self._api, _LANE_CELL_M)
-        return grid.near(points, radius_m)
+        classes = self._type_classes  # grows by a type at its first departure
+        if self._listable is None or self._listable[0] != len(classes):
+            self._listable = (len(classes), grid.listable(frozenset(classes.values())))
+        return grid.near(points, radius_m, self._listable[1])
 
     def vehicle_count(self) -> int:
         """Vehicles in the network: departed minus arrived and removed, counted at each
@@ -1394,6 +1403,9 @@ class _LaneGrid:
     pads: NDArray[np.float64]
     """Half the segment's lane width plus `_LANE_SHAPE_TOLERANCE_M` [m]."""
     segment_lane: NDArray[np.int64]
+    lane_classes: tuple[frozenset[str], ...]
+    """The vehicle classes each lane allows, as the network defines them (permissions
+    changed during the run, by a rerouter or a plug-in, are not seen)."""
 
     @classmethod
     def build(cls, api: _Libsumo | _GuiConnection, cell_m: float) -> _LaneGrid:
@@ -1435,14 +1447,25 @@ class _LaneGrid:
             segments=np.ascontiguousarray(seg),
             pads=pad,
             segment_lane=np.concatenate(owners) if owners else np.zeros(0, dtype=np.int64),
+            lane_classes=tuple(frozenset(api.lane.getAllowed(lane)) for lane in lane_ids),
         )
 
-    def near(self, points: NDArray[np.float64], radius_m: float) -> list[str]:
+    def listable(self, classes: frozenset[str]) -> NDArray[np.bool_]:
+        """Which lanes allow one of these vehicle classes (a lane listing none allows
+        every class)."""
+        return np.array(
+            [not allowed or not allowed.isdisjoint(classes) for allowed in self.lane_classes],
+            dtype=np.bool_,
+        )
+
+    def near(
+        self, points: NDArray[np.float64], radius_m: float, listable: NDArray[np.bool_]
+    ) -> list[str]:
         """In the order of `lane_ids` (on the bench's grid about 470 lanes a step near 100
         platoon cars, where the cells around them held 564)."""
         mask = lanes_within(
             points, radius_m, self.origin, self.cell_m, self.cells_y, self.cell_starts,
             self.cell_segments, self.segments, self.pads, self.segment_lane, len(self.lane_ids),
         )  # fmt: skip
-        listed: list[str] = self.lane_ids[mask].tolist()
+        listed: list[str] = self.lane_ids[mask & listable].tolist()
         return listed
