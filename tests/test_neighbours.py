@@ -223,39 +223,3 @@ def test_snapshot_holds_every_vehicle_within_the_radius_of_the_given_ones(traffi
     assert all(classes.isdisjoint(libsumo.lane.getAllowed(lane)) for lane in skipped)
     footways = {lane for lane in skipped if libsumo.lane.getAllowed(lane) == ("pedestrian",)}
     assert bool(footways) == (name == "drt_city")
-
-
-def test_world_reads_step_after_step_leave_out_only_junction_lanes_that_are_empty(
-    traffic, monkeypatch
-):
-    """Read after every step for 10 s: each read still holds every vehicle within the
-    radius; the lanes near the given cars that were not asked are junction lanes SUMO
-    has no vehicle on (`EmptyLanes`), and there are many of them."""
-    name, backend = traffic
-    lanes = backend._api.lane
-    asked: list[str] = []
-    listing = lanes.getLastStepVehicleIDs
-    monkeypatch.setattr(
-        lanes, "getLastStepVehicleIDs", lambda lane: asked.append(lane) or listing(lane)
-    )
-    radius_m = 43.1
-    wanted = list(libsumo.vehicle.getIDList())[::15]
-    left_out = 0
-    for _ in range(100):
-        backend.step()
-        everyone = list(libsumo.vehicle.getIDList())
-        wanted = [v for v in wanted if v in set(everyone)]
-        asked.clear()
-        world = backend.snapshot(wanted, radius_m)
-        xy = np.array([libsumo.vehicle.getPosition(v) for v in everyone])
-        centres = np.array([libsumo.vehicle.getPosition(v) for v in wanted])
-        distance = np.hypot(*np.moveaxis(xy[:, None] - centres[None], -1, 0)).min(axis=1)
-        assert set(world.ids) == {
-            v for v, d in zip(everyone, distance, strict=True) if d <= radius_m
-        } | set(wanted)
-        grid = backend._lane_grid
-        unasked = set(grid.near(centres, radius_m, backend._listable[1])) - set(asked)
-        assert all(lane.startswith(":") for lane in unasked)
-        assert not any(libsumo.lane.getLastStepVehicleIDs(lane) for lane in unasked)
-        left_out += len(unasked)
-    assert left_out > 100 * (20 if name == "drt_city" else 2), left_out

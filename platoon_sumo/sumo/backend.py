@@ -27,7 +27,6 @@ from numpy.typing import NDArray
 
 from platoon_sumo.errors import SumoError
 from platoon_sumo.kernels.neighbours import lanes_within, within_radius
-from platoon_sumo.sumo.empty_lanes import EmptyLanes
 from platoon_sumo.world import STOP_STATES, LinkAhead, SignalAhead, VehicleAhead, WorldSnapshot
 
 #: SUMO's laneChangeMode bits: strategic changes (1) respecting others' speed and braking
@@ -216,12 +215,6 @@ class SumoBackend:
         self._lane_grid: _LaneGrid | None = None
         self._listable: tuple[int, NDArray[np.bool_]] | None = None
         """The lanes the world read lists, for how many vehicle types had entered."""
-        self._empty_lanes: EmptyLanes | None = None
-        self._classes: frozenset[str] = frozenset()
-        """The vehicle classes of the types that entered the network (with `_listable`)."""
-        self._steps = 0
-        self._fastest_mps = 0.0
-        """The highest maximum speed of the vehicle types that entered the network."""
         self._lane_lengths: dict[str, float] = {}
         self._fit_widths: dict[str, float] = {}
         self._lane_signals: dict[str, tuple[str, str, int]] = {}
@@ -298,7 +291,6 @@ class SumoBackend:
             self._api.simulationStep()
         except self._api.TraCIException as exc:
             raise SumoError(f"SUMO failed at t={self.time_s:.2f} s: {exc}") from None
-        self._steps += 1
         veh, classes = self._api.vehicle, self._type_classes
         departed = self._departed = tuple(self._api.simulation.getDepartedIDList())
         self._in_network += len(departed) - self._api.simulation.getArrivedNumber()
@@ -308,7 +300,6 @@ class SumoBackend:
                 vt = self._api.vehicletype
                 size = float(vt.getLength(type_id) + vt.getWidth(type_id))
                 self._largest_m = max(self._largest_m, size)
-                self._fastest_mps = max(self._fastest_mps, float(vt.getMaxSpeed(type_id)))
                 classes[type_id] = str(vt.getVehicleClass(type_id))
 
     def snapshot(self, vehicle_ids: Sequence[str], radius_m: float) -> WorldSnapshot:
@@ -327,22 +318,9 @@ class SumoBackend:
         centres = _points(map(position, wanted), len(wanted))
         listing = self._api.lane.getLastStepVehicleIDs
         lane_of: dict[str, str] = {}  # each vehicle's lane, in the order first listed
-        near_lanes = self._lanes_near(centres, radius_m)
-        assert self._empty_lanes is not None  # made with the lane grid
-        empty_lanes = self._empty_lanes
-        was_empty, empty = empty_lanes.known_empty(
-            self._steps, self._fastest_mps * self.options.step_s, self._classes
-        )
-        for lane in near_lanes:
-            if lane in was_empty and empty_lanes.follows_empty(lane, was_empty):
-                empty.add(lane)  # a junction lane no vehicle could have got onto
-                continue
-            found = listing(lane)
-            if not found:
-                empty.add(lane)
-            for vid in found:
+        for lane in self._lanes_near(centres, radius_m):
+            for vid in listing(lane):
                 lane_of.setdefault(vid, lane)
-        empty_lanes.remember(self._steps, empty)
         # SUMO lists a vehicle on the lane its front is on, and that lane is near it; a
         # given vehicle on none (teleporting) is asked
         lanes_wanted = [lane_of.get(vid) or veh.getLaneID(vid) for vid in wanted]
@@ -391,11 +369,9 @@ class SumoBackend:
         grid = self._lane_grid
         if grid is None:
             grid = self._lane_grid = _LaneGrid.build(self._api, _LANE_CELL_M)
-            self._empty_lanes = EmptyLanes(self._api.lane, grid.lane_ids.tolist())
         classes = self._type_classes  # grows by a type at its first departure
         if self._listable is None or self._listable[0] != len(classes):
-            self._classes = frozenset(classes.values())
-            self._listable = (len(classes), grid.listable(self._classes))
+            self._listable = (len(classes), grid.listable(frozenset(classes.values())))
         return grid.near(points, radius_m, self._listable[1])
 
     def vehicle_count(self) -> int:
