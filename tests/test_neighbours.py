@@ -137,6 +137,9 @@ def test_lanes_no_vehicle_class_in_the_network_may_use_are_not_listed():
     assert grid.near(near, 5.0, cars) == ["l00", "l03"]
     with_bikes = grid.listable(frozenset({"passenger", "bicycle"}))
     assert grid.near(near, 5.0, with_bikes) == ["l00", "l02", "l03"]
+    # SUMO's class `ignoring` drives wherever it likes
+    anywhere = grid.listable(frozenset({"passenger", "ignoring"}))
+    assert grid.near(near, 5.0, anywhere) == ["l00", "l01", "l02", "l03"]
 
 
 FLOWS = "<routes>{}</routes>".format(

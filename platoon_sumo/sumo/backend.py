@@ -1452,7 +1452,9 @@ class _LaneGrid:
 
     def listable(self, classes: frozenset[str]) -> NDArray[np.bool_]:
         """Which lanes allow one of these vehicle classes (a lane listing none allows
-        every class)."""
+        every class; a vehicle of SUMO's class `ignoring` may use any lane)."""
+        if "ignoring" in classes:
+            return np.ones(len(self.lane_classes), dtype=np.bool_)
         return np.array(
             [not allowed or not allowed.isdisjoint(classes) for allowed in self.lane_classes],
             dtype=np.bool_,
