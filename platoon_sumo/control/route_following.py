@@ -232,10 +232,7 @@ class RouteFollowing:
         self._s_m = s
         if status == STEP_LANE_UNREAD:  # lane ids that do not read as EDGE_INDEX
             lane = path.lane_step(s, lane_offset_m, s, 0.0)
-        return frozen_from_dict(Command, {
-            "speed_mps": speed, "yaw_rate_radps": yaw_rate, "heading_rad": None,
-            "lane_change": lane, "telemetry": None, "keep_lane": False,
-        })  # fmt: skip
+        return _route_command(speed, yaw_rate, lane)
 
     def _set_limits(self, limits: MotionLimits) -> None:
         """The kernel's parameters (``PARAM_NAMES``) with these limits."""
@@ -248,6 +245,14 @@ class RouteFollowing:
             dtype=np.float64,
         )  # fmt: skip
         self._limits = limits
+
+
+def _route_command(speed_mps: float, yaw_rate_radps: float, lane_change: int) -> Command:
+    """A route-following step's command (no heading, telemetry or lane hold)."""
+    return frozen_from_dict(Command, {
+        "speed_mps": speed_mps, "yaw_rate_radps": yaw_rate_radps, "heading_rad": None,
+        "lane_change": lane_change, "telemetry": None, "keep_lane": False,
+    })  # fmt: skip
 
 
 _TABLE_NAMES = ("xy", "blocks", "widths", "codes", "spans", "curve", "geometry")
@@ -314,12 +319,9 @@ def _step_together(
     x, y, length, offset = cols.x_m, cols.y_m, cols.length_m, cols.lane_offset_m
     for j, (c, r, values) in enumerate(zip(controllers, rows, out.tolist(), strict=True)):
         status, s, cmd_speed, yaw_rate, lane = values
-        if status == STEP_OK:  # as `_command` makes it
+        if status == STEP_OK:  # `_command` without its checks
             c._s_m = s
-            commands[index[j]] = frozen_from_dict(Command, {
-                "speed_mps": cmd_speed, "yaw_rate_radps": yaw_rate, "heading_rad": None,
-                "lane_change": int(lane), "telemetry": None, "keep_lane": False,
-            })  # fmt: skip
+            commands[index[j]] = _route_command(cmd_speed, yaw_rate, int(lane))
             continue
         try:
             commands[index[j]] = c._command(

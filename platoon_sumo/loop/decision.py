@@ -156,7 +156,7 @@ class _FixedFields:
             width_m=width,
             limits=[m.platoon.limits for m in members],
             paths=[m.path for m in members],
-            on_sumo_lanes=[m.actuator.sumo_drives for m in members],
+            on_sumo_lanes=[bool(c["on_sumo_lanes"]) for c in constants],
             controllers=[m.controller for m in members],
             supervisors=[m.platoon.config.supervisor for m in members],
             ours=[m.plan.sumo_car_following is None for m in members],

@@ -1171,13 +1171,9 @@ class SumoBackend:
         veh = self._api.vehicle
         self._tls_states.clear()  # this step's
         contexts = []
-        world = self._last_read
         positions = self._lane_positions
         for vid, horizon, read in zip(vehicle_ids, horizons_m, read_links, strict=True):
-            if world is not None and (i := world.index.get(vid)) is not None:
-                lane = world.lane_ids[i]
-            else:
-                lane = veh.getLaneID(vid)
+            lane = self._lane_now(vid)
             remaining = math.inf
             if lane:
                 position = positions[vid] = veh.getLanePosition(vid)
