@@ -23,6 +23,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from platoon_sumo.collector import existing_objects_frozen
 from platoon_sumo.events import Event
 from platoon_sumo.loop.actuate import Actuate, ReadBack
 from platoon_sumo.loop.context import (
@@ -118,8 +119,9 @@ class CoSimulation:
         outcome = RunOutcome("failed", self.backend.time_s)
         try:
             self.ctx.world = self.backend.snapshot([], 0.0)
-            while self.backend.time_s < self.end_s - 1e-9:
-                self.step()
+            with existing_objects_frozen():  # built for the run: nothing to collect there
+                while self.backend.time_s < self.end_s - 1e-9:
+                    self.step()
             outcome = RunOutcome("complete", self.backend.time_s)
         except KeyboardInterrupt:  # the time of the last world read: SUMO may be gone
             outcome = RunOutcome("interrupted", self.ctx.world.time_s, "interrupted")

@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 import platoon_sumo
+from platoon_sumo.collector import collector_paused
 from platoon_sumo.config_loader import FieldError
 from platoon_sumo.control.base import SumoCarFollowing
 from platoon_sumo.cosim import CoSimulation
@@ -82,7 +83,15 @@ def load_plan(
     """Load and check a scenario, with command-line overrides applied.
 
     `without_platoons` runs the same traffic with no platoon at all: the baseline that
-    shows what the platoons do to everyone else."""
+    shows what the platoons do to everyone else. The garbage collector pauses meanwhile:
+    the scenario, network, routes and paths are objects that all live on."""
+    with collector_paused():
+        return _load_plan(path, end_s, seed, without_platoons)
+
+
+def _load_plan(
+    path: str | Path, end_s: float | None, seed: int | None, without_platoons: bool
+) -> RunPlan:
     source = load_scenario(path)
     if without_platoons:
         source = ScenarioSource(

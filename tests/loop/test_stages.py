@@ -3,6 +3,7 @@ from the step context and what it writes back, events included."""
 
 from __future__ import annotations
 
+import gc
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -733,20 +734,26 @@ class Collector(StepHook):
     def __init__(self) -> None:
         self.steps = 0
         self.outcome: RunOutcome | None = None
+        self.frozen_objects: list[int] = []
 
     def on_step(self, record: Any) -> None:
         self.steps += 1
+        self.frozen_objects.append(gc.get_freeze_count())
 
     def on_end(self, outcome: RunOutcome) -> None:
         self.outcome = outcome
 
 
-def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
-    backend = FakeBackend()
-    run_plan = plan(write_scenario, members=1, leader=SCRIPTED)
+def scripted_run(write_scenario) -> tuple[CoSimulation, Collector]:
+    """A one-member run on the fake backend, its leader `Scripted` at 3 m/s, watched."""
     hook = Collector()
-    sim = CoSimulation(run_plan, backend, [hook])
+    sim = CoSimulation(plan(write_scenario, members=1, leader=SCRIPTED), FakeBackend(), [hook])
     Scripted.speed = 3.0
+    return sim, hook
+
+
+def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
+    sim, hook = scripted_run(write_scenario)
     sim.step(), sim.step(), sim.step()
     Scripted.speed = RuntimeError("late failure")
     with pytest.raises(PluginError):
@@ -755,6 +762,15 @@ def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
     assert hook.outcome is not None and hook.outcome.status == "failed"
     assert "late failure" in hook.outcome.error
     assert hook.steps == 3  # the failing step's record never reached the hooks
+    assert gc.get_freeze_count() == 0  # the collector as it was (its freeze below)
+
+
+def test_the_run_leaves_its_objects_out_of_collections_while_it_steps(write_scenario):
+    sim, hook = scripted_run(write_scenario)
+    assert gc.get_freeze_count() == 0
+    assert sim.run().status == "complete"
+    assert hook.steps == 200 and min(hook.frozen_objects) > 1000  # the plan, network, ...
+    assert gc.get_freeze_count() == 0  # and back in the collector's passes after the run
 
 
 def test_gridlocks_are_found_every_ten_seconds_once_per_episode(write_scenario):

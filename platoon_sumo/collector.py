@@ -1,0 +1,43 @@
+"""Python's cyclic garbage collector around a run's two phases.
+
+Building a run (the network, the routes, the paths, SUMO's bindings) makes hundreds of
+thousands of objects that all live as long as the run; stepping it makes short-lived
+ones. Left alone, the collector's full passes walk every object a few times while the
+heap grows and again during the steps, and find next to nothing: on the DRT city
+(`city_platoons`, 200 s) seven full passes took 0.50 s of the run's 8.6 s of CPU and
+freed 339 objects in all. The two blocks below leave the collector as they found it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+from collections.abc import Iterator
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """No collection while the block builds objects that live on (`gc.disable`); the
+    collector runs again after it if it ran before."""
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
+@contextlib.contextmanager
+def existing_objects_frozen() -> Iterator[None]:
+    """The objects that exist when the block starts are left out of the collector's
+    passes until it ends (`gc.freeze`; garbage among them is collected after it). Does
+    nothing while a caller holds objects frozen itself, whose freeze it would undo."""
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
