@@ -4,8 +4,10 @@ Building a run (the network, the routes, the paths, SUMO's bindings) makes hundr
 thousands of objects that all live as long as the run; stepping it makes short-lived
 ones. Left alone, the collector's full passes walk every object a few times while the
 heap grows and again during the steps, and find next to nothing: on the DRT city
-(`city_platoons`, 200 s) seven full passes took 0.50 s of the run's 8.6 s of CPU and
-freed 339 objects in all. The two blocks below leave the collector as they found it.
+(`city_platoons`, 200 s) its passes took 0.72 s of the run's 9.8 s of CPU (two full
+passes during the steps 0.33 s) and freed about 1,800 objects; with the two blocks
+below 0.28 s (docs/performance.md, session 37). Both leave the collector as they found
+it.
 """
 
 from __future__ import annotations
