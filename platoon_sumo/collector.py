@@ -4,10 +4,11 @@ Building a run (the network, the routes, the paths, SUMO's bindings) makes hundr
 thousands of objects that all live as long as the run; stepping it makes short-lived
 ones. Left alone, the collector's full passes walk every object a few times while the
 heap grows and again during the steps, and find next to nothing: on the DRT city
-(`city_platoons`, 200 s) its passes took 0.72 s of the run's 9.8 s of CPU (two full
-passes during the steps 0.33 s) and freed about 1,800 objects; with the two blocks
-below 0.28 s (docs/performance.md, session 37). Both leave the collector as they found
-it.
+(`city_platoons`, 200 s) the two full passes during the steps took 0.33 s of the run's
+CPU and freed a few hundred objects; frozen, one pass of 10-20 ms is left. Pausing the
+collector while the plan is built saves less: the allocations owe their passes when it
+runs again (`tools/gc_passes.py`, docs/performance.md session 37). Both blocks leave the
+collector as they found it.
 """
 
 from __future__ import annotations

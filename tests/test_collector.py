@@ -8,6 +8,8 @@ import gc
 import pytest
 
 from platoon_sumo.collector import collector_paused, existing_objects_frozen
+from platoon_sumo.runner import load_plan
+from tests.helpers import REPO
 
 
 @pytest.fixture(autouse=True)
@@ -66,9 +68,6 @@ def test_a_freeze_of_the_caller_is_not_undone():
 
 
 def test_loading_a_plan_makes_one_collector_pass_at_most_and_leaves_it_running():
-    from platoon_sumo.runner import load_plan
-    from tests.helpers import REPO
-
     passes: list[int] = []
 
     def count(phase: str, info: dict[str, int]) -> None:

@@ -762,7 +762,7 @@ def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
     assert hook.outcome is not None and hook.outcome.status == "failed"
     assert "late failure" in hook.outcome.error
     assert hook.steps == 3  # the failing step's record never reached the hooks
-    assert gc.get_freeze_count() == 0  # the collector as it was (its freeze below)
+    assert gc.get_freeze_count() == 0  # the loop's freeze ended with the failure
 
 
 def test_the_run_leaves_its_objects_out_of_collections_while_it_steps(write_scenario):
