@@ -5,12 +5,24 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from platoon_sumo.control.base import Command, Observation
+from platoon_sumo.control.base import Command, Observation, Telemetry
 from platoon_sumo.path import RoutePath
-from platoon_sumo.supervisor import EMERGENCY, MERGE, SIGNAL, YIELD, SupervisorConfig, supervise
+from platoon_sumo.supervisor import (
+    EMERGENCY,
+    MERGE,
+    SIGNAL,
+    YIELD,
+    SupervisorConfig,
+    config_rows,
+    supervise,
+    supervise_many,
+)
 from platoon_sumo.vehicles import MotionLimits
 from platoon_sumo.world import LaneChangeAhead, LinkAhead, SignalAhead, VehicleAhead
+from tests import reference_supervisor as reference
 
 PATH = RoutePath.from_pieces([np.array([[0.0, 0.0], [500.0, 0.0]])], ["e_0"], [14.0], [3.2], 0.5)
 
@@ -64,3 +76,57 @@ def test_switched_off_rules_do_not_act():
     red_and_close = obs(signal=SignalAhead("t", 0, "r", 15.0),
                         vehicle_ahead=VehicleAhead("x", 3.0, 0.0))  # fmt: skip
     assert supervise(config, red_and_close, CMD) == (CMD, "")
+
+
+def _maybe(strategy):
+    return st.one_of(st.none(), strategy)
+
+
+_metres = st.floats(-5.0, 120.0, allow_nan=False)
+_speeds = st.floats(0.0, 25.0, allow_nan=False)
+_ahead = st.builds(VehicleAhead, st.just("x"), _metres, _speeds)
+_member = st.fixed_dictionaries({
+    "config": st.builds(
+        SupervisorConfig, st.booleans(), st.floats(0.5, 6.0), st.floats(1.0, 8.0),
+        st.floats(0.0, 2.0), st.booleans(), st.booleans(), st.booleans(), st.floats(0.0, 3.0),
+    ),
+    "command": st.builds(
+        Command, st.floats(-1.0, 30.0, allow_nan=False),
+        telemetry=_maybe(st.builds(Telemetry, desired_accel_mps2=_maybe(st.floats(-9.0, 3.0)))),
+    ),
+    "speed": _speeds,
+    "limits": st.builds(MotionLimits, st.floats(5.0, 40.0), st.floats(0.5, 4.0),
+                        st.floats(2.0, 9.0), st.floats(0.2, 1.5)),
+    "signal": _maybe(st.builds(SignalAhead, st.just("t"), st.just(0),
+                               st.sampled_from("rRyGgus"), _metres)),
+    "link": _maybe(st.builds(LinkAhead, st.sampled_from("mM="), st.booleans(), st.booleans(),
+                             st.booleans(), _metres)),
+    "change": _maybe(st.builds(LaneChangeAhead, _metres, st.booleans(), _maybe(_ahead))),
+    "vehicle_ahead": _maybe(_ahead),
+    "obstacle_ahead": _maybe(_ahead),
+    "sumo_drives": st.booleans(),
+})  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_member, min_size=1, max_size=8), st.sampled_from([0.05, 0.1, 0.5]))
+def test_the_batch_is_the_one_vehicle_check_bit_for_bit(members, dt_s):
+    """Every member of a batch gets what the supervisor's check of it alone gave before
+    it ran as one compiled pass (`reference_supervisor`): the executed command, the
+    state and the desired acceleration, to the last bit."""
+    executed, enforced, accels = supervise_many(
+        config_rows([m["config"] for m in members], [m["limits"] for m in members],
+                    [m["sumo_drives"] for m in members]),
+        [m["command"] for m in members], np.array([m["speed"] for m in members]), dt_s,
+        [m["signal"] for m in members], [m["link"] for m in members],
+        [m["change"] for m in members], [m["vehicle_ahead"] for m in members],
+        [m["obstacle_ahead"] for m in members],
+    )  # fmt: skip
+    for m, run, state, accel in zip(members, executed, enforced, accels, strict=True):
+        expected = reference.supervise_fields(
+            m["config"], m["command"], m["speed"], dt_s, m["limits"], m["signal"], m["link"],
+            m["change"], m["vehicle_ahead"], m["obstacle_ahead"], m["sumo_drives"],
+        )  # fmt: skip
+        assert (run, state) == expected[:2]
+        assert np.float64(run.speed_mps).tobytes() == np.float64(expected[0].speed_mps).tobytes()
+        assert np.float64(accel).tobytes() == np.float64(expected[2]).tobytes()

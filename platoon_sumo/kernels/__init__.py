@@ -3,8 +3,9 @@
 Pure functions on arrays and numbers, no Python objects: route-path projection and the
 speed-profile look-ahead (``path.py``), scan segmentation and rear fitting
 (``perception.py``), the laser follower's scan and trail geometry (``follower.py``), the
-laser scanner's ray casting (``raycast.py``), the predecessor-trail metric (``trail.py``)
-and the world read's distance filter (``neighbours.py``). The modules that use them keep
+laser scanner's ray casting (``raycast.py``), the predecessor-trail metric (``trail.py``),
+the world read's distance filter (``neighbours.py``) and the supervisor's speed bounds
+(``supervision.py``). The modules that use them keep
 their public API; the kernels do the same arithmetic as the numpy or Python code they
 replace, to floating-point rounding (each is tested against that code kept as an
 oracle).

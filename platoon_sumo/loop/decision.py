@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from platoon_sumo.control import Command, Controller, Observation
+from platoon_sumo.control import Controller, Observation
 from platoon_sumo.control.base import ObservationColumns, ObservationRows, step_batch
 from platoon_sumo.events import EventKind
 from platoon_sumo.frozen import frozen_from_dict
@@ -17,7 +17,7 @@ from platoon_sumo.loop.context import StepContext
 from platoon_sumo.loop.fleet import LATERAL, SPEED, YAW, Member, X, Y
 from platoon_sumo.path import RoutePath
 from platoon_sumo.sensors.laser import LaserScan
-from platoon_sumo.supervisor import EMERGENCY, SupervisorConfig, supervise_fields
+from platoon_sumo.supervisor import EMERGENCY, config_rows, supervise_many
 from platoon_sumo.vehicles import MotionLimits
 
 
@@ -64,16 +64,6 @@ def observation(
     })  # fmt: skip
 
 
-def desired_accel(m: Member, command: Command, dt_s: float, speed_mps: float) -> float:
-    """The controller's own figure, else the commanded speed change within the limits."""
-    telemetry = command.telemetry
-    if telemetry is not None and telemetry.desired_accel_mps2 is not None:
-        return float(telemetry.desired_accel_mps2)
-    limits = m.platoon.limits
-    wanted = (command.speed_mps - speed_mps) / dt_s
-    return min(max(wanted, -limits.max_decel_mps2), limits.max_accel_mps2)
-
-
 class Decide:
     def __call__(self, ctx: StepContext) -> None:
         members = ctx.fleet.members()
@@ -104,21 +94,20 @@ class Decide:
 
         observations = ObservationRows(columns, build)
         commands = step_batch(fixed.controllers, observations)
-        for m, k, command, supervisor, ours in zip(
-            members, kin, commands, fixed.supervisors, fixed.ours, strict=True
+        executed, enforced, accels = supervise_many(
+            fixed.supervision, commands, kin_rows[:, SPEED], dt_s, columns.signal,
+            [m.link_ahead for m in members], [m.lane_change for m in members],
+            columns.vehicle_ahead, columns.obstacle_ahead,
+        )  # fmt: skip
+        for m, command, run, state, accel, ours in zip(
+            members, commands, executed, enforced, accels, fixed.ours, strict=True
         ):
-            speed = k[SPEED]
-            m.command = command
-            m.desired_accel_mps2 = desired_accel(m, command, dt_s, speed)
-            m.executed, enforced = supervise_fields(
-                supervisor, command, speed, dt_s, m.platoon.limits, m.signal, m.link_ahead,
-                m.lane_change, m.vehicle_ahead, m.obstacle_ahead, m.actuator.sumo_drives,
-            )  # fmt: skip
+            m.command, m.executed, m.desired_accel_mps2 = command, run, accel
             # SUMO's model drives a `sumo_driver` member: the supervisor's state is a
             # check there, and nothing brakes, so no emergency braking is reported
-            if ours and enforced == EMERGENCY and m.supervisor_state != EMERGENCY:
+            if ours and state == EMERGENCY and m.supervisor_state != EMERGENCY:
                 ctx.emit(EventKind.EMERGENCY_BRAKING, m)
-            m.supervisor_state = enforced
+            m.supervisor_state = state
 
 
 @dataclass(frozen=True)
@@ -135,7 +124,8 @@ class _FixedFields:
     paths: list[RoutePath]
     on_sumo_lanes: list[bool]
     controllers: list[Controller]
-    supervisors: list[SupervisorConfig]
+    supervision: NDArray[np.float64]
+    """The members' supervisor settings and limits (`supervisor.config_rows`)."""
     ours: list[bool]
     """Whether the member's own controller drives it (not SUMO's car following)."""
 
@@ -158,7 +148,11 @@ class _FixedFields:
             paths=[m.path for m in members],
             on_sumo_lanes=[bool(c["on_sumo_lanes"]) for c in constants],
             controllers=[m.controller for m in members],
-            supervisors=[m.platoon.config.supervisor for m in members],
+            supervision=config_rows(
+                [m.platoon.config.supervisor for m in members],
+                [m.platoon.limits for m in members],
+                [m.actuator.sumo_drives for m in members],
+            ),
             ours=[m.plan.sumo_car_following is None for m in members],
         )
 
