@@ -8,12 +8,9 @@ in the platoon's order that is still in the network.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
-
-import numpy as np
-from numpy.typing import NDArray
 
 
 class Member(Protocol):
@@ -42,7 +39,7 @@ def predecessor_ids(members: Iterable[Member]) -> dict[str, str | None]:
     return result
 
 
-def bumper_gap_m(follower_rect: NDArray[np.float64], leader_rect: NDArray[np.float64]) -> float:
+def bumper_gap_m(follower_rect: Sequence[float], leader_rect: Sequence[float]) -> float:
     """Distance from the follower's front-bumper centre to the leader's rear-bumper centre.
 
     Rectangles are `(centre_x, centre_y, yaw, length, width)`; on a straight lane this is

@@ -362,12 +362,24 @@ def _who(cls: type, obs: Observation) -> str:
     return f"controller {cls.__module__}.{cls.__qualname__} of vehicle '{obs.vehicle_id}'"
 
 
+_INF = math.inf
+
+
 def command_problem(command: Command) -> str | None:
     """What makes `command` impossible to execute, or None."""
-    speed = command.speed_mps
+    speed, rate = command.speed_mps, command.yaw_rate_radps
+    if (  # the usual command, in one test (every command of every step passes here)
+        type(speed) is float
+        and 0.0 <= speed < _INF
+        and type(rate) is float
+        and -_INF < rate < _INF
+        and command.heading_rad is None
+        and command.lane_change in (-1, 0, 1)
+        and type(command.keep_lane) is bool
+    ):
+        return None
     if not isinstance(speed, (int, float)) or not math.isfinite(speed) or speed < 0:
         return f"speed_mps={speed!r} (must be a finite number >= 0)"
-    rate = command.yaw_rate_radps
     if not isinstance(rate, (int, float)) or not math.isfinite(rate):
         return f"yaw_rate_radps={rate!r} (must be a finite number)"
     heading = command.heading_rad

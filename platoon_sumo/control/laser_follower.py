@@ -343,8 +343,6 @@ class LaserFollower:
         self._pooled_law: FloatArray | None = None
         self._joined = False
         """Whether the pooled state row holds this follower's numbers (``_join_rows``)."""
-        self._batched: list[float] | None = None
-        """This step's values of ``following_batch_kernel`` (``step_many``)."""
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -445,15 +443,17 @@ class LaserFollower:
             rows = c._batch_entry(speed[r], path[r], scan[r], limits[r], width[r])
             if rows is not None:
                 batches.setdefault(rows, []).append(k)
+        outs: list[list[float] | None] = [None] * len(controllers)
         for rows, members in batches.items():
-            _step_batch(rows, [controllers[k] for k in members], cols, [at[k] for k in members])
+            followers, rows_at = [controllers[k] for k in members], [at[k] for k in members]
+            for k, values in zip(members, _step_batch(rows, followers, cols, rows_at), strict=True):
+                outs[k] = values
         commands = []
-        for k, c in enumerate(controllers):
+        for k, (c, out) in enumerate(zip(controllers, outs, strict=True)):
             try:
                 if type(c).step is not LaserFollower.step:
                     commands.append(c.step(observations[k]))
                     continue
-                out, c._batched = c._batched, None
                 if out is not None and out[0] == FOLLOWED:  # booked in the rows
                     c._last_scan = c._clearance_scan = scan[at[k]]
                     c._in_view, c._blocked, c._measured_gap_m = bool(out[16]), bool(out[5]), out[24]
@@ -1072,10 +1072,9 @@ def _path_rows(path: object) -> tuple[np.ndarray, ...]:
 
 def _step_batch(
     rows: FollowerRows, followers: list[LaserFollower], cols: ObservationColumns, at: list[int]
-) -> None:
+) -> list[list[float]]:
     """The fused steps of `followers` (all joined to `rows`; their observations rows `at`
-    of `cols`) in one kernel call; each keeps its row of values for ``step_many``
-    (``_batched``)."""
+    of `cols`) in one kernel call: each one's row of values, for ``step_many``."""
     paths = _PATHS[rows]
     path_of = paths.numbers([cols.path[r] for r in at], _path_rows)
     scans = [cols.scan[r] for r in at]
@@ -1104,5 +1103,5 @@ def _step_batch(
         scratch_rows, a["cand_pts"], a["cand_row"], a["trail"], a["law"], a["params"],
         a["state_rows"], np.array([c._slot for c in followers], dtype=np.int64), inputs,
     )  # fmt: skip
-    for c, values in zip(followers, out.tolist(), strict=True):
-        c._batched = values
+    values: list[list[float]] = out.tolist()
+    return values

@@ -5,12 +5,14 @@ speed-profile look-ahead (``path.py``), scan segmentation and rear fitting
 (``perception.py``), the laser follower's scan and trail geometry (``follower.py``), the
 laser scanner's ray casting (``raycast.py``), the predecessor-trail metric (``trail.py``),
 the world read's distance filter (``neighbours.py``) and the supervisor's speed bounds
-(``supervision.py``). The modules that use them keep
-their public API; the kernels do the same arithmetic as the numpy or Python code they
-replace, to floating-point rounding (each is tested against that code kept as an
-oracle).
+(``supervision.py``). The modules that use them keep their public API; the kernels do
+the same arithmetic as the numpy or Python code they replace, to floating-point rounding
+(each is tested against that code kept as an oracle).
 
 Each kernel is compiled on its first call and cached next to its module
 (``__pycache__``, numba's ``cache=True``), so later processes load it instead of
-compiling it again.
+compiling it again. numba checks only the kernel's own source file against its cache,
+not the kernels it calls in other modules: in a source checkout, after editing a kernel
+that another module's kernel calls, delete ``platoon_sumo/kernels/__pycache__/*.nb[ci]``
+(an install copies every file anew, so it compiles every kernel again).
 """
