@@ -308,23 +308,25 @@ class ObstaclesAhead:
             lane = world.lane_ids[me]
             if lane and lane[0] != ":":
                 near_end.append((j, m, me, lane, end_m))
+        xs: list[float] = []
+        ys: list[float] = []
+        lengths: list[float] = []
         if near_end:  # the moving cars on those members' lanes
             members_ids = {m.id for m in ctx.fleet}
             wanted = {lane for *_, lane, _ in near_end}
             for i in np.flatnonzero(world.speed_mps >= STANDING_MPS).tolist():
                 if world.lane_ids[i] in wanted:
                     on_lane.setdefault(world.lane_ids[i], []).append(i)
+            # as Python floats: the test below runs for every pair, and math on numpy
+            # scalars costs several times as much
+            xs, ys = world.front_x_m.tolist(), world.front_y_m.tolist()
+            lengths = world.length_m.tolist()
         for j, m, me, lane, end_m in near_end:
             # a car beside has its front within a car's length along the lane, so
             # within that and the lane's width in the plane: SUMO is asked only then
             reach = backend.lane_width(lane) + m.platoon.config.vehicle.length_m
             if not any(
-                i != me
-                and math.hypot(
-                    world.front_x_m[i] - world.front_x_m[me],
-                    world.front_y_m[i] - world.front_y_m[me],
-                )
-                <= reach + world.length_m[i]
+                i != me and math.hypot(xs[i] - xs[me], ys[i] - ys[me]) <= reach + lengths[i]
                 for i in on_lane.get(lane, ())
             ):
                 continue
