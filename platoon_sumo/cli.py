@@ -132,6 +132,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     plan = load_plan(path, end_s=args.end, seed=args.seed, without_platoons=args.no_platoons)
     _network_warnings(plan)
     hooks = [] if args.quiet else [Progress(sys.stderr)]
+    if hooks and plan.platoons and not _kernels_compiled():
+        print(
+            "note: the first run after installing compiles the loop's kernels once (about a "
+            "minute on 2 cores, the run meanwhile slower); later runs load them",
+            file=sys.stderr,
+        )
     live_view = _live_view(args, plan)
     result = run(
         plan, out_dir=args.out, hooks=hooks, force=args.force, live_view=live_view,
@@ -172,6 +178,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         timings = result.directory / TIMINGS_FILE
         print(f"{headline(pd.read_csv(timings))} ({timings})")
     return 0
+
+
+def _kernels_compiled() -> bool:
+    """Whether the kernels every platoon run calls are compiled already (an unreadable
+    cache counts as compiled: no note rather than a wrong one)."""
+    from platoon_sumo.kernels import in_cache
+    from platoon_sumo.kernels.route import project_members
+
+    return in_cache(project_members) is not False
 
 
 def _live_view(args: argparse.Namespace, plan: RunPlan) -> LiveViewOptions | None:

@@ -16,3 +16,18 @@ not the kernels it calls in other modules: in a source checkout, after editing a
 that another module's kernel calls, delete ``platoon_sumo/kernels/__pycache__/*.nb[ci]``
 (an install copies every file anew, so it compiles every kernel again).
 """
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def in_cache(kernel: Any) -> bool | None:
+    """Whether numba's cache holds a compiled version of `kernel` (a ``njit(cache=True)``
+    function) for its present source; None where the cache cannot be read (numba's
+    internals, which this reads, changed). The first run after an install compiles every
+    kernel it calls, which takes about a minute on 2 cores."""
+    try:
+        return bool(kernel._cache._cache_file._load_index())
+    except Exception:  # internals of numba: no answer, not an error
+        return None
