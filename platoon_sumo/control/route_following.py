@@ -163,8 +163,6 @@ class RouteFollowing:
 
     def _signal_limit(self, signal: SignalAhead | None, speed_mps: float, dt_s: float) -> float:
         """The speed that stops at a red or yellow light ahead in time (inf: none)."""
-        if signal is None or not signal.is_stop:
-            return math.inf
         return signal_speed_limit(signal, speed_mps, dt_s, *self._signal_args)
 
     @staticmethod
