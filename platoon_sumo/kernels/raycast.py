@@ -31,9 +31,15 @@ from numba import njit
 GEO_ROWS = ("px", "py", "qx", "qy", "num", "ex", "ey", "bearing_p", "bearing_q")
 #: Rows of the edges' integer table: the obstacle's identity and the kind of edge.
 INT_ROWS = ("ident", "kind")
-#: Kinds of edge: seen as a wedge; seen exactly end-on (hit only along its line), its
-#: ``p`` end nearer or its ``q`` end nearer.
+#: Kinds of edge: seen as a wedge; seen end-on (hit only along its line), its ``p``
+#: end nearer or its ``q`` end nearer.
 WEDGE, END_ON_P, END_ON_Q = 0, 1, 2
+#: An edge whose ends are less than this far apart in bearing, seen from the sensor
+#: [rad] (the sine; squared below), is seen end-on: the distance along a ray between
+#: its ends' bearings divides two numbers that are rounding only, and once put a wall
+#: lying along a ray 0.9 m nearer than its near end (found by the hypothesis oracle).
+END_ON_SINE = 1e-12
+_END_ON_SINE2 = END_ON_SINE * END_ON_SINE
 #: Relative band around the reach in which the squared-distance test defers to
 #: ``math.hypot`` (the numpy implementation's test), far wider than their rounding.
 _BAND = 1e-9
@@ -354,6 +360,7 @@ def candidate_edges(
             by = ch * dy - sh * dx
             # orient the segment counter-clockwise as seen from the sensor: p -> q
             turn = ax * by - ay * bx
+            square = (ax * ax + ay * ay) * (bx * bx + by * by)
             swap = turn < 0.0
             px = bx if swap else ax
             py = by if swap else ay
@@ -363,11 +370,11 @@ def candidate_edges(
             ey = qy - py
             num = px * ey - py * ex
             kind = WEDGE
-            if turn == 0.0:
+            if turn * turn <= _END_ON_SINE2 * square:  # end-on (exactly: turn == 0)
                 if px * qx + py * qy <= 0.0:  # the sensor lies on the segment
                     touch[k] = min(touch[k], ident)
                     continue
-                # seen exactly end-on: hit only along its line, at its near end
+                # seen end-on: hit only along its line, at its near end
                 dist_p = math.hypot(px, py)
                 dist_q = math.hypot(qx, qy)
                 near_p = dist_p <= dist_q

@@ -20,14 +20,15 @@ def outlines(rectangles, segments, grow_m: float = 0.0):
         shape = affinity.rotate(box(-hl, -hw, hl, hw), yaw, origin=(0, 0), use_radians=True)
         geoms.append(affinity.translate(shape, cx, cy).exterior)
     for x1, y1, x2, y2 in np.asarray(segments, float).reshape(-1, 4):
+        if grow_m > 0.0:  # a wall inflated on all sides: a ray along its line meets the cap
+            geoms.append(LineString([(x1, y1), (x2, y2)]).buffer(grow_m).exterior)
+            continue
         d = np.array([x2 - x1, y2 - y1])
         n = np.hypot(*d)
-        u = d / n if n > 0 else np.zeros(2)
-        if n + 2.0 * grow_m <= 0.0 or (n == 0.0 and grow_m == 0.0):
+        if n + 2.0 * grow_m <= 0.0:  # nothing left of it (or a point to begin with)
             geoms.append(Point(0.5 * (x1 + x2), 0.5 * (y1 + y2)))
             continue
-        if n == 0.0:
-            u = np.array([1.0, 0.0])  # a point grown into a tiny segment
+        u = d / n  # shortened at both ends
         a, b = np.array([x1, y1]) - grow_m * u, np.array([x2, y2]) + grow_m * u
         geoms.append(LineString([a, b]))
     return geoms

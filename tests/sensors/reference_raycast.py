@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from platoon_sumo.geometry import rectangle_corners
+from platoon_sumo.kernels.raycast import END_ON_SINE
 from platoon_sumo.sensors.laser import LaserConfig
 from platoon_sumo.sensors.raycast import (
     _CULL_SLACK_M,
@@ -285,9 +286,10 @@ def _raw_ranges(
     swap = turn < 0.0
     px, py = np.where(swap, bx, ax), np.where(swap, by, ay)
     qx, qy = np.where(swap, ax, bx), np.where(swap, ay, by)
-    collinear = turn == 0.0
+    square = (ax * ax + ay * ay) * (bx * bx + by * by)
+    collinear = turn * turn <= END_ON_SINE * END_ON_SINE * square  # to rounding
     touching = collinear & (px * qx + py * qy <= 0.0)  # sensor lies on the segment
-    edge_on = collinear & ~touching  # seen exactly end-on: hit only along its line
+    edge_on = collinear & ~touching  # seen end-on: hit only along its line
 
     # wedge of directions -> run of ray indices (in units of the angle increment)
     inc = config.angle_increment_rad

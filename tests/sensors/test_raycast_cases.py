@@ -62,6 +62,21 @@ def test_segment_seen_end_on_is_hit_at_its_near_end() -> None:
     assert np.isposinf(ranges[[0, 2]]).all()
 
 
+@pytest.mark.parametrize("bearing", [-2.0, -1.0, 0.3, 2.5])
+def test_wall_along_a_ray_at_any_bearing_reads_its_near_end_or_nothing(bearing) -> None:
+    # its ends lie on the ray's bearing only to rounding: the distance between their
+    # bearings once divided rounding by rounding and put the wall nearer than it is
+    config = LaserConfig(bearing, bearing + 1.0, 2, 0.0, 3.0)
+    for near_m in np.linspace(0.2, 2.9, 28):
+        for far_m in (near_m + 0.05, near_m + 0.8, 3.9):
+            for a, b in ((near_m, far_m), (far_m, near_m)):
+                wall = [a * math.cos(bearing), a * math.sin(bearing)]
+                wall += [b * math.cos(bearing), b * math.sin(bearing)]
+                ranges = cast_rays([0.0, 0.0], 0.0, config, segments=[wall])
+                assert ranges[1] == np.inf, (near_m, far_m)
+                assert ranges[0] == np.inf or abs(ranges[0] - near_m) <= TOL_M, (a, b, ranges)
+
+
 def test_obstacles_behind_and_beyond_range_are_not_seen() -> None:
     config = fan(rmax=10.0)
     boxes = [[-5.0, 0.0, 0.0, 2.0, 2.0], [10.5, 0.0, 0.0, 0.5, 30.0]]  # behind; just too far
