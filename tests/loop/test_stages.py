@@ -12,6 +12,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pytest
 
+from platoon_sumo.collector import INTERPRETER_FROZEN
 from platoon_sumo.control import Command
 from platoon_sumo.cosim import CoSimulation
 from platoon_sumo.errors import PluginError
@@ -762,15 +763,15 @@ def test_the_loop_ends_every_hook_when_a_stage_fails(write_scenario):
     assert hook.outcome is not None and hook.outcome.status == "failed"
     assert "late failure" in hook.outcome.error
     assert hook.steps == 3  # the failing step's record never reached the hooks
-    assert gc.get_freeze_count() == 0  # the loop's freeze ended with the failure
+    assert gc.get_freeze_count() <= INTERPRETER_FROZEN  # the loop's freeze ended with the failure
 
 
 def test_the_run_leaves_its_objects_out_of_collections_while_it_steps(write_scenario):
     sim, hook = scripted_run(write_scenario)
-    assert gc.get_freeze_count() == 0
+    assert gc.get_freeze_count() <= INTERPRETER_FROZEN  # nothing but the interpreter's own
     assert sim.run().status == "complete"
     assert hook.steps == 200 and min(hook.frozen_objects) > 1000  # the plan, network, ...
-    assert gc.get_freeze_count() == 0  # and back in the collector's passes after the run
+    assert gc.get_freeze_count() <= INTERPRETER_FROZEN  # back in the collector's passes
 
 
 def test_gridlocks_are_found_every_ten_seconds_once_per_episode(write_scenario):
