@@ -46,3 +46,14 @@ def test_leader_has_no_follower_metrics_and_missing_scans_give_none():
     assert list(m["p"]) == ["p.1"]
     assert m["p"]["p.1"]["in_view_share"] is None
     assert m["p"]["p.1"]["rms_spacing_error_m"] is None
+
+
+def test_run_totals_are_correctly_rounded_so_every_python_writes_the_same_digits():
+    # the built-in sum adds floats naively before Python 3.12 and compensated since:
+    # the summary's totals and means differed in their last digits between the two
+    from platoon_sumo.metrics.tables import overall
+
+    platoons = [{"fuel_kg": 0.1, "co2_kg": 0.1, "intact_share": 0.1} for _ in range(10)]
+    totals = overall(platoons)
+    assert totals["fuel_kg"] == totals["co2_kg"] == 1.0  # naively 0.9999999999999999
+    assert totals["mean_intact_share"] == 0.1

@@ -64,10 +64,12 @@ def summary_tables(
     for p in platoons:
         members = [v for v in vehicles if v["platoon_id"] == p["platoon_id"]]
         times = [v["travel_time_s"] for v in members if v.get("travel_time_s") is not None]
-        p["mean_travel_time_s"] = sum(times) / len(times) if times else None
+        # math.fsum: correctly rounded, so every Python writes the same digits (the built-in
+        # sum adds naively before 3.12 and compensated since)
+        p["mean_travel_time_s"] = math.fsum(times) / len(times) if times else None
         for key, unit in (("fuel", "kg"), ("co2", "kg")):
             grams = [v[f"{key}_g"] for v in members if v.get(f"{key}_g") is not None]
-            p[f"{key}_{unit}"] = sum(grams) / 1000.0 if grams else None
+            p[f"{key}_{unit}"] = math.fsum(grams) / 1000.0 if grams else None
     return vehicles, platoons, responses
 
 
@@ -194,11 +196,11 @@ def overall(platoons: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         "max_accel_l2_gain": pick("max_accel_l2_gain", max),
         "max_rms_accel_mps2": pick("max_rms_accel_mps2", max),
         "max_rms_jerk_mps3": pick("max_rms_jerk_mps3", max),
-        "mean_intact_share": sum(shares) / len(shares) if shares else None,
+        "mean_intact_share": math.fsum(shares) / len(shares) if shares else None,
         "splits": pick("splits", sum),
         "cut_ins": pick("cut_ins", sum),
-        "fuel_kg": pick("fuel_kg", sum),
-        "co2_kg": pick("co2_kg", sum),
+        "fuel_kg": pick("fuel_kg", math.fsum),
+        "co2_kg": pick("co2_kg", math.fsum),
         **{key: pick(key, sum) for key in V2V_COLUMNS},
     }
 

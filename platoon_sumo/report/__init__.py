@@ -243,7 +243,7 @@ def comparison_table(
                     "emergency_brakings", "mean_travel_time_s"):  # fmt: skip
             values = [p.get(key) for p in platoons.values() if p.get(key) is not None]
             if key == "mean_travel_time_s":
-                row[key] = sum(values) / len(values) if values else None
+                row[key] = math.fsum(values) / len(values) if values else None
             else:
                 row[key] = max(values) if values else None
         for key, _ in TRAFFIC_COLUMNS:
