@@ -790,7 +790,9 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"Command: `{shlex.join([sys.executable, tool, *argv])}`  ",
         f"Date: {dt.date.today().isoformat()}; code: commit {commit} ({where})  ",
-        f"Machine: {machine()}; Python {platform.python_version()}; {sumo_version()}  ",
+        # the interpreter's own file: its build moves the loop's cost (performance.md, session 39)
+        f"Machine: {machine()}; Python {platform.python_version()} "
+        f"({Path(sys.executable).resolve()}); {sumo_version()}  ",
         f"Background: {background} vehicles in the route file (seed {args.seed}; warm-up "
         f"{args.warmup:g} s at one every {args.warmup_period:g} s, then one every "
         f"{args.period:g} s; trips >= {args.min_trip:g} m); step {STEP_S:g} s; "
